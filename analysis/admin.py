@@ -1,0 +1,33 @@
+from django.contrib import admin
+
+from analysis.models import AnalysisRun, AssignedValue, Report, Score
+
+
+@admin.register(AnalysisRun)
+class AnalysisRunAdmin(admin.ModelAdmin):
+    list_display = ["id", "comparison", "status", "progress", "stage", "created_at", "finished_at"]
+    list_filter = ["status", "comparison"]
+    search_fields = ["comparison__code", "error"]
+
+
+@admin.register(AssignedValue)
+class AssignedValueAdmin(admin.ModelAdmin):
+    list_display = ["measurement_point", "run", "value", "standard_uncertainty", "method"]
+    list_filter = ["method", "run__comparison"]
+    search_fields = ["measurement_point__device__name"]
+    raw_id_fields = ["run", "measurement_point"]
+
+
+@admin.register(Score)
+class ScoreAdmin(admin.ModelAdmin):
+    list_display = ["result", "run", "en", "zeta", "z", "flag", "correlation_applied"]
+    list_filter = ["flag", "correlation_applied", "run__comparison"]
+    search_fields = ["result__submission__participant__code"]
+    raw_id_fields = ["run", "result"]
+
+
+@admin.register(Report)
+class ReportAdmin(admin.ModelAdmin):
+    list_display = ["comparison", "kind", "participant", "version", "superseded", "created_at"]
+    list_filter = ["kind", "superseded", "comparison"]
+    search_fields = ["comparison__code", "participant__code", "sha256"]

@@ -1,0 +1,132 @@
+"""Analysis runs and their outputs (assigned values, scores) and issued reports.
+
+These start minimal; the coordinator and report issues grow them.
+"""
+
+from __future__ import annotations
+
+from django.conf import settings
+from django.db import models
+from django.db.models import Q
+
+from labs.models import Participant, Result
+from proficiency.models import Comparison, MeasurementPoint
+
+
+class AnalysisRun(models.Model):
+    """A persisted background job: ``pending → running → succeeded | failed``."""
+
+    class Status(models.TextChoices):
+        PENDING = "pending", "Pending"
+        RUNNING = "running", "Running"
+        SUCCEEDED = "succeeded", "Succeeded"
+        FAILED = "failed", "Failed"
+
+    comparison = models.ForeignKey(
+        Comparison, on_delete=models.CASCADE, related_name="analysis_runs"
+    )
+    status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
+    progress = models.PositiveSmallIntegerField(default=0)
+    stage = models.CharField(max_length=40, blank=True)
+    error = models.TextField(blank=True)
+    parameters = models.JSONField(default=dict, blank=True)
+    code_version = models.CharField(max_length=40, blank=True)
+    created_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL
+    )
+    created_at = models.DateTimeField(auto_now_add=True)
+    started_at = models.DateTimeField(null=True, blank=True)
+    finished_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["-created_at"]
+        constraints = [
+            models.CheckConstraint(condition=Q(progress__lte=100), name="run_progress_le_100"),
+        ]
+
+    def __str__(self) -> str:
+        return f"Run {self.pk} of {self.comparison.code} ({self.status})"
+
+
+class AssignedValue(models.Model):
+    """x_pt and u(x_pt) of one measurement point in one run."""
+
+    run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="assigned_values")
+    measurement_point = models.ForeignKey(
+        MeasurementPoint, on_delete=models.CASCADE, related_name="assigned_values"
+    )
+    value = models.FloatField()
+    standard_uncertainty = models.FloatField()
+    method = models.CharField(max_length=40)
+    sigma_pt = models.FloatField(null=True, blank=True)
+    diagnostics = models.JSONField(default=dict, blank=True)
+
+    class Meta:
+        ordering = ["run", "measurement_point"]
+        constraints = [
+            models.UniqueConstraint(fields=["run", "measurement_point"], name="assigned_once"),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.measurement_point}: {self.value:g} (run {self.run_id})"
+
+
+class Score(models.Model):
+    """Scores of one result in one run (ISO 13528 §9); flags as labels."""
+
+    run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="scores")
+    result = models.ForeignKey(Result, on_delete=models.CASCADE, related_name="scores")
+    d = models.FloatField()
+    d_percent = models.FloatField()
+    en = models.FloatField()
+    zeta = models.FloatField()
+    z = models.FloatField(null=True, blank=True)
+    z_prime = models.FloatField(null=True, blank=True)
+    flag = models.CharField(max_length=12)
+    correlation_applied = models.BooleanField(default=False)
+
+    class Meta:
+        ordering = ["run", "result"]
+        constraints = [
+            models.UniqueConstraint(fields=["run", "result"], name="score_once"),
+        ]
+
+    def __str__(self) -> str:
+        return f"En={self.en:.3f} ({self.flag})"
+
+
+class Report(models.Model):
+    """An issued PDF report: summary or one participant's."""
+
+    class Kind(models.TextChoices):
+        SUMMARY = "summary", "Summary report"
+        PARTICIPANT = "participant", "Participant report"
+
+    comparison = models.ForeignKey(Comparison, on_delete=models.CASCADE, related_name="reports")
+    run = models.ForeignKey(
+        AnalysisRun, null=True, blank=True, on_delete=models.PROTECT, related_name="reports"
+    )
+    kind = models.CharField(max_length=12, choices=Kind.choices)
+    participant = models.ForeignKey(
+        Participant, null=True, blank=True, on_delete=models.CASCADE, related_name="reports"
+    )
+    version = models.PositiveIntegerField(default=1)
+    file = models.FileField(upload_to="reports/", blank=True)
+    sha256 = models.CharField(max_length=64, blank=True)
+    size = models.PositiveIntegerField(default=0)
+    software_version = models.CharField(max_length=40, blank=True)
+    superseded = models.BooleanField(default=False)
+    created_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["comparison", "kind", "-version"]
+        constraints = [
+            models.CheckConstraint(
+                condition=Q(kind="summary", participant__isnull=True)
+                | Q(kind="participant", participant__isnull=False),
+                name="report_kind_participant",
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.get_kind_display()} v{self.version} ({self.comparison.code})"

@@ -1,0 +1,65 @@
+from django.contrib import admin
+
+from labs.models import Laboratory, Membership, Participant, Result, Submission
+
+
+@admin.register(Laboratory)
+class LaboratoryAdmin(admin.ModelAdmin):
+    list_display = ["name", "country", "accreditation_body", "accreditation_number"]
+    list_filter = ["country", "accreditation_body"]
+    search_fields = ["name", "accreditation_number", "contact_name", "contact_email"]
+
+
+@admin.register(Membership)
+class MembershipAdmin(admin.ModelAdmin):
+    list_display = ["user", "laboratory", "role"]
+    list_filter = ["role", "laboratory"]
+    search_fields = ["user__username", "user__email", "laboratory__name"]
+    list_select_related = ["user", "laboratory"]
+
+
+@admin.register(Participant)
+class ParticipantAdmin(admin.ModelAdmin):
+    list_display = ["code", "comparison", "laboratory", "is_reference", "invited_at"]
+    list_filter = ["comparison", "is_reference"]
+    search_fields = ["code", "laboratory__name", "comparison__code"]
+    list_select_related = ["comparison", "laboratory"]
+
+
+class ResultInline(admin.TabularInline):
+    model = Result
+    extra = 0
+    readonly_fields = ["standard_uncertainty"]
+    raw_id_fields = ["measurement_point"]
+
+
+@admin.register(Submission)
+class SubmissionAdmin(admin.ModelAdmin):
+    list_display = ["participant", "version", "status", "source", "submitted_at", "submitted_by"]
+    list_filter = ["status", "source", "participant__comparison"]
+    search_fields = ["participant__code", "participant__laboratory__name"]
+    list_select_related = ["participant__comparison", "submitted_by"]
+    inlines = [ResultInline]
+
+
+@admin.register(Result)
+class ResultAdmin(admin.ModelAdmin):
+    list_display = [
+        "submission",
+        "measurement_point",
+        "value",
+        "unit",
+        "expanded_uncertainty",
+        "coverage_factor",
+        "standard_uncertainty",
+    ]
+    list_filter = [
+        "submission__participant__comparison",
+        "submission__status",
+        "measurement_point__bench",
+        "measurement_point__axis",
+        "measurement_point__device__name",
+    ]
+    search_fields = ["submission__participant__code", "submission__participant__laboratory__name"]
+    list_select_related = ["submission__participant", "measurement_point__device"]
+    raw_id_fields = ["submission", "measurement_point"]

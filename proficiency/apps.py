@@ -1,0 +1,6 @@
+from django.apps import AppConfig
+
+
+class ProficiencyConfig(AppConfig):
+    name = "proficiency"
+    verbose_name = "Comparisons"

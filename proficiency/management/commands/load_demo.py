@@ -1,0 +1,34 @@
+"""python manage.py load_demo — the demo comparison IMU-2024-DEMO (idempotent)."""
+
+from django.core.management.base import BaseCommand
+
+from proficiency.demo import load_demo
+
+
+class Command(BaseCommand):
+    help = "Create the demo comparison IMU-2024-DEMO with 12 laboratories (idempotent)."
+
+    def add_arguments(self, parser):
+        parser.add_argument(
+            "--password",
+            help="Password for the demo accounts created now (default: a random one each).",
+        )
+
+    def handle(self, *args, password=None, **options):
+        summary = load_demo(password=password)
+        c = summary.comparison
+        self.stdout.write(
+            f"Demo comparison {c.code}: {c.devices.count()} devices, "
+            f"{c.measurement_points.count()} measurement points, "
+            f"{c.participants.count()} participants."
+        )
+        if summary.created_users:
+            self.stdout.write("Demo logins (shown once; write them down):")
+            for username, pw in summary.created_users.items():
+                self.stdout.write(f"  {username:16s} {pw}")
+        if summary.existing_users:
+            self.stdout.write(
+                "Existing demo accounts kept their passwords: "
+                + ", ".join(summary.existing_users)
+                + " (change one with: python manage.py changepassword USERNAME)."
+            )

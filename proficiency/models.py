@@ -1,0 +1,245 @@
+"""The comparison domain: rounds, artefacts (devices), measurement points, reference values."""
+
+from __future__ import annotations
+
+import sys
+
+from django.conf import settings
+from django.db import models
+from django.db.models import Q
+
+from proficiency import protocols
+
+FLOAT_MAX = sys.float_info.max  # "finite" in a CHECK constraint: NaN and ±inf both fail <= max
+
+
+def finite_positive(field: str) -> Q:
+    """CHECK condition: 0 < field <= largest float (rejects 0, negatives, NaN and inf)."""
+    return Q(**{f"{field}__gt": 0}) & Q(**{f"{field}__lte": FLOAT_MAX})
+
+
+class ComparisonStatus(models.TextChoices):
+    DRAFT = "draft", "Draft"
+    OPEN = "open", "Open for submissions"
+    CLOSED = "closed", "Closed"
+    ANALYSED = "analysed", "Analysed"
+    PUBLISHED = "published", "Published"
+
+
+class AssignedValueMethod(models.TextChoices):
+    """domain.md §5."""
+
+    REFERENCE = "reference", "Reference laboratory (pilot)"
+    NOMINAL = "nominal", "Nominal value with tolerance"
+    WEIGHTED_MEAN = "weighted_mean", "Weighted mean (largest consistent subset if inconsistent)"
+    ALGORITHM_A = "algorithm_a", "Robust consensus (ISO 13528 Algorithm A)"
+    MEDIAN = "median", "Median with MADe"
+    DERSIMONIAN_LAIRD = "dersimonian_laird", "Random effects (DerSimonian–Laird)"
+
+
+class SigmaPtMode(models.TextChoices):
+    NONE = "none", "Not used (En and ζ only)"
+    ABSOLUTE = "absolute", "Prescribed, absolute"
+    RELATIVE = "relative", "Prescribed, relative to the assigned value (%)"
+    ROBUST = "robust", "Robust s* of the round"
+
+
+class Distribution(models.TextChoices):
+    RECTANGULAR = "rectangular", "Rectangular"
+    NORMAL = "normal", "Normal (tolerance is an expanded uncertainty, k = 2)"
+    TRIANGULAR = "triangular", "Triangular"
+
+
+class Axis(models.TextChoices):
+    X = "X", "X"
+    Y = "Y", "Y"
+    Z = "Z", "Z"
+
+
+class Bench(models.TextChoices):
+    LINEAR = protocols.LINEAR, "Linear"
+    CURVILINEAR = protocols.CURVILINEAR, "Curvilinear"
+    SINE_ON_RANDOM = protocols.SINE_ON_RANDOM, "Sine-on-random"
+
+
+class Direction(models.TextChoices):
+    VERTICAL = "vertical", "Vertical"
+    TANGENTIAL = "tangential", "Tangential"
+    RADIAL = "radial", "Radial"
+
+
+DEFAULT_UNIT = "D/(m/s^2)"
+
+
+class Comparison(models.Model):
+    """One proficiency test / interlaboratory comparison round."""
+
+    code = models.SlugField(max_length=40, unique=True, help_text="e.g. IMU-2024-01")
+    title = models.CharField(max_length=200)
+    description = models.TextField(blank=True)
+    protocol = models.CharField(
+        max_length=40, choices=protocols.PROTOCOL_CHOICES, default=protocols.CUSTOM
+    )
+    status = models.CharField(
+        max_length=12, choices=ComparisonStatus.choices, default=ComparisonStatus.DRAFT
+    )
+    submission_deadline = models.DateTimeField(null=True, blank=True)
+    assigned_value_method = models.CharField(
+        max_length=24, choices=AssignedValueMethod.choices, default=AssignedValueMethod.REFERENCE
+    )
+    sigma_pt_mode = models.CharField(
+        max_length=12, choices=SigmaPtMode.choices, default=SigmaPtMode.NONE
+    )
+    sigma_pt_value = models.FloatField(
+        null=True, blank=True, help_text="Absolute value, or percent for the relative mode."
+    )
+    en_limit = models.FloatField(default=1.0)
+    coordinators = models.ManyToManyField(
+        settings.AUTH_USER_MODEL, blank=True, related_name="coordinated_comparisons"
+    )
+    created_at = models.DateTimeField(auto_now_add=True)
+    updated_at = models.DateTimeField(auto_now=True)
+
+    class Meta:
+        ordering = ["-created_at", "code"]
+        constraints = [
+            models.CheckConstraint(condition=finite_positive("en_limit"), name="cmp_en_limit_pos"),
+            models.CheckConstraint(
+                condition=Q(sigma_pt_value__isnull=True) | finite_positive("sigma_pt_value"),
+                name="cmp_sigma_pt_pos",
+            ),
+            models.CheckConstraint(
+                condition=Q(status__in=ComparisonStatus.values), name="cmp_status_valid"
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return self.code
+
+
+class Device(models.Model):
+    """A circulated artefact (device under test) with its nominal sensitivity."""
+
+    comparison = models.ForeignKey(Comparison, on_delete=models.CASCADE, related_name="devices")
+    name = models.CharField(max_length=80, help_text="e.g. MEMS 1")
+    model = models.CharField(max_length=80, blank=True, help_text="e.g. LSM6DSR")
+    serial = models.CharField(max_length=80, blank=True)
+    unit = models.CharField(max_length=20, default=DEFAULT_UNIT)
+    nominal_sensitivity = models.FloatField(null=True, blank=True)
+    tolerance = models.FloatField(null=True, blank=True, help_text="Half-width of the tolerance.")
+    tolerance_relative = models.BooleanField(default=True, help_text="Tolerance given in %.")
+    tolerance_distribution = models.CharField(
+        max_length=12, choices=Distribution.choices, default=Distribution.RECTANGULAR
+    )
+
+    class Meta:
+        ordering = ["comparison", "name"]
+        constraints = [
+            models.UniqueConstraint(fields=["comparison", "name"], name="device_unique_name"),
+            models.CheckConstraint(
+                condition=Q(nominal_sensitivity__isnull=True)
+                | finite_positive("nominal_sensitivity"),
+                name="device_nominal_pos",
+            ),
+            models.CheckConstraint(
+                condition=Q(tolerance__isnull=True) | finite_positive("tolerance"),
+                name="device_tolerance_pos",
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.name} ({self.comparison.code})" if self.comparison_id else self.name
+
+
+class MeasurementPoint(models.Model):
+    """One measurand: device × axis × frequency × bench × direction (× optional amplitude)."""
+
+    comparison = models.ForeignKey(
+        Comparison, on_delete=models.CASCADE, related_name="measurement_points"
+    )
+    device = models.ForeignKey(Device, on_delete=models.CASCADE, related_name="measurement_points")
+    axis = models.CharField(max_length=1, choices=Axis.choices)
+    frequency_hz = models.FloatField()
+    bench = models.CharField(max_length=20, choices=Bench.choices)
+    direction = models.CharField(
+        max_length=12, choices=Direction.choices, default=Direction.VERTICAL
+    )
+    amplitude_m_s2 = models.FloatField(null=True, blank=True)
+    assigned_value_method = models.CharField(
+        max_length=24,
+        choices=AssignedValueMethod.choices,
+        blank=True,
+        help_text="Overrides the comparison's method for this point when set.",
+    )
+    sigma_pt_value = models.FloatField(
+        null=True, blank=True, help_text="Overrides the comparison's σ_pt for this point."
+    )
+
+    class Meta:
+        ordering = ["device__name", "bench", "direction", "axis", "frequency_hz"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["comparison", "device", "axis", "frequency_hz", "bench", "direction"],
+                condition=Q(amplitude_m_s2__isnull=True),
+                name="point_unique_no_amplitude",
+            ),
+            models.UniqueConstraint(
+                fields=[
+                    "comparison",
+                    "device",
+                    "axis",
+                    "frequency_hz",
+                    "bench",
+                    "direction",
+                    "amplitude_m_s2",
+                ],
+                condition=Q(amplitude_m_s2__isnull=False),
+                name="point_unique_with_amplitude",
+            ),
+            models.CheckConstraint(
+                condition=finite_positive("frequency_hz"), name="point_freq_pos"
+            ),
+            models.CheckConstraint(
+                condition=Q(amplitude_m_s2__isnull=True) | finite_positive("amplitude_m_s2"),
+                name="point_amplitude_pos",
+            ),
+            models.CheckConstraint(condition=Q(axis__in=Axis.values), name="point_axis_valid"),
+        ]
+
+    def __str__(self) -> str:
+        return (
+            f"{self.device.name}, {self.axis}, {self.frequency_hz:g} Hz, "
+            f"{self.bench} {self.direction}"
+        )
+
+
+class ReferenceValue(models.Model):
+    """A reference value for a measurement point: pilot result, nominal, or a computed one."""
+
+    class Source(models.TextChoices):
+        REFERENCE_LAB = "reference_lab", "Reference laboratory"
+        NOMINAL = "nominal", "Nominal value"
+        COMPUTED = "computed", "Computed by an analysis run"
+        STABILITY_BEFORE = "stability_before", "Pilot, before circulation"
+        STABILITY_AFTER = "stability_after", "Pilot, after circulation"
+
+    measurement_point = models.ForeignKey(
+        MeasurementPoint, on_delete=models.CASCADE, related_name="reference_values"
+    )
+    source = models.CharField(max_length=20, choices=Source.choices)
+    value = models.FloatField()
+    standard_uncertainty = models.FloatField()
+    note = models.TextField(blank=True)
+    created_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["measurement_point", "source"]
+        constraints = [
+            models.CheckConstraint(condition=finite_positive("value"), name="ref_value_pos"),
+            models.CheckConstraint(
+                condition=finite_positive("standard_uncertainty"), name="ref_u_pos"
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.measurement_point}: {self.value:g} ({self.get_source_display()})"

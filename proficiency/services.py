@@ -1,0 +1,169 @@
+"""Services of the comparison domain: the status state machine, templates, the point grid."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Iterable, Sequence
+
+from django.db import transaction
+
+from proficiency import protocols
+from proficiency.errors import InvalidTransition, ValidationFailed
+from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
+
+S = ComparisonStatus
+
+# The one place where the comparison life cycle is defined.  A closed comparison
+# may be reopened (e.g. a deadline extension); an analysed one may go back to
+# closed so that corrected submissions can be reviewed and re-analysed.
+# Published is final: a correction after publication is a reissued report.
+COMPARISON_TRANSITIONS: dict[str, frozenset[str]] = {
+    S.DRAFT: frozenset({S.OPEN}),
+    S.OPEN: frozenset({S.CLOSED}),
+    S.CLOSED: frozenset({S.OPEN, S.ANALYSED}),
+    S.ANALYSED: frozenset({S.CLOSED, S.PUBLISHED}),
+    S.PUBLISHED: frozenset(),
+}
+
+
+def comparison_allowed_transitions(comparison: Comparison) -> list[str]:
+    return sorted(COMPARISON_TRANSITIONS[comparison.status])
+
+
+@transaction.atomic
+def comparison_transition(*, comparison: Comparison, to: str) -> Comparison:
+    """Move a comparison to status ``to`` if the life cycle allows it, under a row lock."""
+    locked = Comparison.objects.select_for_update().get(pk=comparison.pk)
+    if to not in S.values:
+        raise InvalidTransition(f"Unknown comparison status {to!r}; known: {', '.join(S.values)}.")
+    allowed = COMPARISON_TRANSITIONS[locked.status]
+    if to not in allowed:
+        nexts = ", ".join(sorted(allowed)) or "none (published is final)"
+        raise InvalidTransition(
+            f"Comparison {locked.code} cannot go from {locked.status} to {to}; "
+            f"allowed next status: {nexts}."
+        )
+    if to == S.OPEN and not locked.measurement_points.exists():
+        raise InvalidTransition(
+            f"Comparison {locked.code} has no measurement points; add them before opening it."
+        )
+    locked.status = to
+    locked.save(update_fields=["status", "updated_at"])
+    comparison.status = to
+    return locked
+
+
+PointKey = tuple[int, str, float, str, str, float | None]
+
+
+def _point_key(p: MeasurementPoint) -> PointKey:
+    return (p.device_id, p.axis, p.frequency_hz, p.bench, p.direction, p.amplitude_m_s2)
+
+
+@transaction.atomic
+def measurement_points_generate(
+    *,
+    comparison: Comparison,
+    devices: Sequence[Device],
+    axes: Iterable[str],
+    frequencies_hz: Iterable[float],
+    benches: Iterable[str],
+    directions: Iterable[str] | None = None,
+    amplitudes: dict[tuple[float, str], float] | None = None,
+) -> list[MeasurementPoint]:
+    """Create the grid devices × axes × frequencies × benches × directions; idempotent.
+
+    ``directions`` defaults to each bench's own (vertical on the linear bench,
+    tangential and radial on the curvilinear one); a (bench, direction) pair that
+    the bench cannot produce is refused.  ``amplitudes`` maps (frequency,
+    direction) to the expected excitation amplitude.  Points that already exist
+    are kept; the new ones are created in one bulk insert.  Returns the new points.
+    """
+    axes, freqs, benches = list(axes), [float(f) for f in frequencies_hz], list(benches)
+    _check_grid(comparison, devices, axes, freqs, benches)
+    existing = {_point_key(p) for p in comparison.measurement_points.all()}
+    new: list[MeasurementPoint] = []
+    for bench in benches:
+        dirs = list(directions) if directions is not None else _bench_directions(bench)
+        for device, axis, f, direction in itertools.product(devices, axes, freqs, dirs):
+            _check_direction(bench, direction)
+            amp = (amplitudes or {}).get((f, direction))
+            point = MeasurementPoint(
+                comparison=comparison,
+                device=device,
+                axis=axis,
+                frequency_hz=f,
+                bench=bench,
+                direction=direction,
+                amplitude_m_s2=amp,
+            )
+            if _point_key(point) not in existing:
+                existing.add(_point_key(point))
+                new.append(point)
+    return MeasurementPoint.objects.bulk_create(new)
+
+
+def _bench_directions(bench: str) -> list[str]:
+    return list(protocols.DIRECTIONS_BY_BENCH.get(bench, ("vertical",)))
+
+
+def _check_direction(bench: str, direction: str) -> None:
+    allowed = protocols.DIRECTIONS_BY_BENCH.get(bench)
+    if allowed is not None and direction not in allowed:
+        raise ValidationFailed(
+            f"Direction {direction!r} is not possible on the {bench} bench "
+            f"(allowed: {', '.join(allowed)})."
+        )
+
+
+def _check_grid(
+    comparison: Comparison,
+    devices: Sequence[Device],
+    axes: list[str],
+    freqs: list[float],
+    benches: list[str],
+) -> None:
+    errors = []
+    if not devices:
+        errors.append("at least one device is needed")
+    if any(d.comparison_id != comparison.pk for d in devices):
+        errors.append("every device must belong to this comparison")
+    if bad := [a for a in axes if a not in ("X", "Y", "Z")]:
+        errors.append(f"unknown axes {bad} (use X, Y, Z)")
+    if not axes:
+        errors.append("at least one axis is needed")
+    if not freqs or any(not (f > 0 and f < float("inf")) for f in freqs):
+        errors.append("frequencies must be finite and > 0")
+    if not benches:
+        errors.append("at least one bench is needed")
+    if errors:
+        raise ValidationFailed("Cannot generate the measurement grid: " + "; ".join(errors) + ".")
+
+
+@transaction.atomic
+def comparison_apply_template(
+    *, comparison: Comparison, template_key: str, devices: Sequence[Device]
+) -> list[MeasurementPoint]:
+    """Generate the measurement points of a seed protocol (domain.md §8) for ``devices``."""
+    try:
+        template = protocols.TEMPLATES[template_key]
+    except KeyError:
+        known = ", ".join(protocols.TEMPLATES)
+        raise ValidationFailed(
+            f"Unknown protocol template {template_key!r}; known: {known}."
+        ) from None
+    created: list[MeasurementPoint] = []
+    for plan in template.benches:
+        created += measurement_points_generate(
+            comparison=comparison,
+            devices=devices,
+            axes=template.axes,
+            frequencies_hz=plan.frequencies_hz,
+            benches=[plan.bench],
+            directions=plan.directions,
+            amplitudes=plan.amplitudes,
+        )
+    if comparison.protocol != template_key:
+        comparison.protocol = template_key
+        comparison.save(update_fields=["protocol", "updated_at"])
+    return created

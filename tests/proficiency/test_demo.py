@@ -1,0 +1,111 @@
+"""The demo loader: idempotent, and its two bench labs reproduce Table 1 exactly."""
+
+import csv
+from io import StringIO
+from pathlib import Path
+
+import numpy as np
+import pytest
+from django.contrib.auth import get_user_model
+from django.core.management import call_command
+
+from labs.models import Laboratory, Membership, Participant, Result, Submission
+from proficiency.demo import DEMO_CODE, OUTLIER_LAB
+from proficiency.models import Comparison, Device, MeasurementPoint
+
+pytestmark = pytest.mark.django_db
+REFERENCE = Path(__file__).resolve().parents[3] / "shared" / "spec" / "reference-data"
+
+
+def counts() -> dict[str, int]:
+    models = [
+        Comparison,
+        Device,
+        MeasurementPoint,
+        Laboratory,
+        Membership,
+        Participant,
+        Submission,
+        Result,
+        get_user_model(),
+    ]
+    return {m.__name__: m.objects.count() for m in models}
+
+
+def test_load_demo_twice_gives_the_same_rows():
+    out = StringIO()
+    call_command("load_demo", password="demo-password-1", stdout=out)
+    first = counts()
+    assert first == {
+        "Comparison": 1,
+        "Device": 3,
+        "MeasurementPoint": 81,
+        "Laboratory": 12,
+        "Membership": 12,
+        "Participant": 12,
+        "Submission": 12,
+        # 2 bench labs (27 + 54 points) and 10 labs measuring all 81 points
+        "Result": 27 + 54 + 10 * 81,
+        "User": 14,
+    }
+    assert "coordinator" in out.getvalue() and "demo-password-1" in out.getvalue()
+    out2 = StringIO()
+    call_command("load_demo", stdout=out2)
+    assert counts() == first
+    assert "demo-password-1" not in out2.getvalue()
+    assert "kept their passwords" in out2.getvalue()
+
+
+def test_demo_accounts_and_roles():
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    users = get_user_model().objects
+    assert users.get(username="admin").is_superuser
+    coordinator = users.get(username="coordinator")
+    assert coordinator.check_password("demo-password-1")
+    assert coordinator.groups.filter(name="coordinators").exists()
+    assert Comparison.objects.get(code=DEMO_CODE).coordinators.filter(pk=coordinator.pk).exists()
+    assert Membership.objects.filter(user__username="lab07").get().laboratory.name
+
+
+def aggregate(values, u):
+    """domain.md §3, written out: mean, sqrt(mean(u)^2 + s^2) with s of ddof = 1."""
+    values, u = np.asarray(values), np.asarray(u)
+    return values.mean(), np.sqrt(u.mean() ** 2 + values.std(ddof=1) ** 2)
+
+
+def test_bench_labs_reproduce_table1():
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    rows = list(csv.DictReader((REFERENCE / "chiominto2024_table1.csv").open()))
+    assert len(rows) == 18
+    lab_of = {
+        "linear": "Linear Bench Calibration Laboratory",
+        "curvilinear": "Curvilinear Bench Calibration Laboratory",
+    }
+    for row in rows:
+        results = Result.objects.filter(
+            submission__participant__laboratory__name=lab_of[row["bench"]],
+            measurement_point__device__name=row["device"],
+            measurement_point__axis=row["axis"],
+        )
+        n_expected = 3 if row["bench"] == "linear" else 6
+        assert results.count() == n_expected
+        assert {r.measurement_point.bench for r in results} == {row["bench"]}
+        mean, u = aggregate([r.value for r in results], [r.standard_uncertainty for r in results])
+        assert mean == pytest.approx(float(row["sensitivity"]), abs=1e-9), row
+        assert 2 * u == pytest.approx(float(row["expanded_uncertainty"]), abs=1e-9), row
+
+
+def test_outlier_is_clear_and_the_rest_plausible():
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    results = Result.objects.select_related(
+        "measurement_point__device", "submission__participant__laboratory"
+    )
+    for r in results:
+        lab = r.submission.participant.laboratory.name
+        dev = r.measurement_point.device.name
+        deviation = abs(r.value / 418.0 - 1)
+        if lab == OUTLIER_LAB and dev == "MEMS 2":
+            assert deviation > 0.05
+        else:
+            assert deviation < 0.04, (lab, dev, r.value)
+        assert 0 < r.expanded_uncertainty / r.value < 0.06
