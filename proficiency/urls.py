@@ -3,9 +3,12 @@
 from django.contrib import admin
 from django.urls import path
 
+from proficiency import views
+
 admin.site.site_header = "Proficiency testing — administration"
 admin.site.site_title = "PT administration"
 
 urlpatterns = [
+    path("", views.home, name="home"),
     path("admin/", admin.site.urls),
 ]
