@@ -68,7 +68,7 @@ class Groups:
         present, index = np.unique(combined, return_inverse=True)
         parts = np.unravel_index(present, [len(u) for u in uniques])
         labels = [
-            tuple(uniques[j][parts[j][g]].item() for j in range(len(cols)))
+            tuple(_scalar(uniques[j][parts[j][g]]) for j in range(len(cols)))
             for g in range(present.size)
         ]
         return cls(index=index.astype(np.intp), n_groups=int(present.size)), labels
@@ -128,6 +128,11 @@ class Groups:
             self._cache["rows"] = rows
             self._cache["cols"] = cols
         return self._cache["rows"], self._cache["cols"]
+
+
+def _scalar(v: object) -> object:
+    """A numpy scalar as the Python value (object arrays already hold Python values)."""
+    return v.item() if isinstance(v, np.generic) else v
 
 
 def as_finite(name: str, values: ArrayLike, *, positive: bool = False) -> FloatArray:

@@ -1,0 +1,333 @@
+"""Assigned values x_pt, u(x_pt) and σ_pt (ISO 13528:2022 §7–§8; domain spec §5).
+
+Every method handles all measurement points (groups) at once and returns an
+:class:`AssignedValues`.  Robust consensus (Algorithm A) lives in
+``analysis.core.robust``.
+"""
+
+from __future__ import annotations
+
+from itertools import combinations
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy import stats
+
+from analysis.core.groups import (
+    BoolArray,
+    CoreInputError,
+    FloatArray,
+    Groups,
+    IntArray,
+    as_finite,
+)
+from analysis.core.types import AssignedValues
+from analysis.core.uncertainty import Distribution, absolute_from_relative, u_from_tolerance
+
+EXHAUSTIVE_MAX = 20
+"""Largest group searched exhaustively by :func:`largest_consistent_subset`."""
+
+# Upper bound on the number of float cells of one vectorised subset batch.
+_BATCH_CELLS = 4_000_000
+
+
+def _results(x: ArrayLike, u: ArrayLike, groups: Groups) -> tuple[FloatArray, FloatArray]:
+    """Validate results: finite x, u > 0, one entry per result, no empty group."""
+    xs = as_finite("x", x)
+    us = as_finite("u", u, positive=True)
+    if not (xs.size == us.size == groups.size):
+        raise CoreInputError(
+            f"x, u and groups must have one entry per result: got {xs.size}, {us.size}, "
+            f"{groups.size}"
+        )
+    empty = np.flatnonzero(groups.counts() == 0)
+    if empty.size:
+        raise CoreInputError(f"group(s) {empty[:10].tolist()} have no results")
+    return xs, us
+
+
+def _group_array(name: str, values: ArrayLike, n: int) -> FloatArray:
+    """One finite float per group: a scalar is broadcast, any other length is an error."""
+    arr = np.asarray(values, dtype=np.float64)
+    if arr.ndim > 1 or (arr.ndim == 1 and arr.size != n):
+        raise CoreInputError(f"{name} needs a scalar or one value per group ({n}), got {arr.shape}")
+    return as_finite(name, np.broadcast_to(arr, (n,)).copy())
+
+
+def _weighted(
+    x: FloatArray, w: FloatArray, groups: Groups, mask: BoolArray
+) -> tuple[FloatArray, FloatArray, FloatArray, IntArray]:
+    """Weighted mean y, (Σw)^(-1/2), Σw(x − y)² and n per group over ``mask``.
+
+    x is shifted by each group's first result so that identical values give
+    exactly that value and χ² suffers no cancellation.
+    """
+    shift = groups.padded(x)[:, 0]
+    dx = x - shift[groups.index]
+    wm = np.where(mask, w, 0.0)
+    s1 = groups.sum(wm)
+    dy = groups.sum(wm * dx) / s1
+    chi2 = groups.sum(wm * (dx - dy[groups.index]) ** 2)
+    n = np.bincount(groups.index[mask], minlength=groups.n_groups)
+    return shift + dy, 1.0 / np.sqrt(s1), chi2, n
+
+
+def _consistency(chi2_obs: FloatArray, n: IntArray, alpha: float) -> dict[str, np.ndarray]:
+    """χ² consistency test of Cox 2002 procedure A, one entry per group.
+
+    With a single result (dof = 0) the test is void: chi2_obs = 0,
+    chi2_crit = 0, p_value = 1, consistent = True and birge_ratio = 0.
+    """
+    dof = n - 1
+    nu = np.maximum(dof, 1)
+    many = dof > 0
+    chi2_obs = np.where(many, chi2_obs, 0.0)
+    crit = np.where(many, stats.chi2.ppf(1.0 - alpha, nu), 0.0)
+    return {
+        "n": n,
+        "dof": dof,
+        "chi2_obs": chi2_obs,
+        "chi2_crit": crit,
+        "p_value": np.where(many, stats.chi2.sf(chi2_obs, nu), 1.0),
+        "consistent": chi2_obs <= crit,
+        "birge_ratio": np.sqrt(chi2_obs / nu),
+    }
+
+
+def _check_alpha(alpha: float) -> None:
+    if not 0.0 < alpha < 1.0:
+        raise CoreInputError(f"significance level alpha must be in (0, 1), got {alpha!r}")
+
+
+def reference_value(
+    x: ArrayLike, u: ArrayLike, groups: Groups, is_reference: ArrayLike
+) -> AssignedValues:
+    """Reference (pilot) laboratory value, ISO 13528:2022 7.5; domain spec §5.1.
+
+    x_pt = the reference result, u(x_pt) = its u.  Every group needs exactly one
+    reference result.  Diagnostics: ``reference_index`` (result index per group).
+    """
+    xs, us = _results(x, u, groups)
+    ref = np.asarray(is_reference)
+    if ref.dtype != np.bool_ or ref.shape != (groups.size,):
+        raise CoreInputError(f"is_reference must be a boolean array of {groups.size} entries")
+    count = np.bincount(groups.index[ref], minlength=groups.n_groups)
+    if (count != 1).any():
+        g = int(np.flatnonzero(count != 1)[0])
+        what = "no reference result" if count[g] == 0 else f"{count[g]} reference results"
+        raise CoreInputError(f"group {g} has {what}: mark exactly one result per group")
+    where = np.flatnonzero(ref)
+    position = np.empty(groups.n_groups, dtype=np.intp)
+    position[groups.index[where]] = where
+    return AssignedValues(
+        value=xs[position],
+        standard_uncertainty=us[position],
+        method="reference",
+        included=ref.copy(),
+        diagnostics={"reference_index": position},
+    )
+
+
+def nominal_value(
+    nominal: ArrayLike,
+    tolerance: ArrayLike,
+    groups: Groups,
+    *,
+    relative: bool = False,
+    distribution: Distribution = "rectangular",
+    k: float = 2.0,
+) -> AssignedValues:
+    """Nominal (manufacturer) value with a tolerance, domain spec §5.2 (GUM 4.3.7).
+
+    ``nominal`` and ``tolerance`` (half-width; in % of the nominal when
+    ``relative``) are scalars or one per group; u(x_pt) from
+    :func:`u_from_tolerance` (``k`` only for ``normal``).  No result is included.
+    418 ± 1 % rectangular gives u = 2.41329.  Diagnostics: ``half_width``.
+    """
+    nom = _group_array("nominal", nominal, groups.n_groups)
+    tol = _group_array("tolerance", tolerance, groups.n_groups)
+    half = (
+        absolute_from_relative(nom, tol) if relative else as_finite("tolerance", tol, positive=True)
+    )
+    return AssignedValues(
+        value=nom,
+        standard_uncertainty=u_from_tolerance(half, distribution, k),
+        method="nominal",
+        included=np.zeros(groups.size, dtype=np.bool_),
+        diagnostics={"half_width": half},
+    )
+
+
+def weighted_mean(
+    x: ArrayLike, u: ArrayLike, groups: Groups, alpha: float = 0.05
+) -> AssignedValues:
+    """Weighted mean, Cox (2002) Metrologia 39:589, procedure A; domain spec §5.3.
+
+    y = Σ(x/u²)/Σ(1/u²), u(y) = (Σ 1/u²)^(−1/2); χ²_obs = Σ(x − y)²/u² against
+    χ²_{1−α}(N − 1) (scipy), Birge ratio √(χ²_obs/(N − 1)).  Diagnostics: n,
+    dof, chi2_obs, chi2_crit, p_value, consistent, birge_ratio; for a single
+    result see ``_consistency`` (consistent, Birge ratio reported as 0).
+    """
+    _check_alpha(alpha)
+    xs, us = _results(x, u, groups)
+    everyone = np.ones(groups.size, dtype=np.bool_)
+    y, u_y, chi2, n = _weighted(xs, 1.0 / us**2, groups, everyone)
+    return AssignedValues(
+        value=y,
+        standard_uncertainty=u_y,
+        method="weighted_mean",
+        included=everyone,
+        diagnostics=_consistency(chi2, n, alpha),
+    )
+
+
+def largest_consistent_subset(
+    x: ArrayLike,
+    u: ArrayLike,
+    groups: Groups,
+    alpha: float = 0.05,
+    exhaustive_max: int = EXHAUSTIVE_MAX,
+) -> AssignedValues:
+    """Weighted mean of the largest consistent subset, Cox (2007) Metrologia 44:187.
+
+    Groups of up to ``exhaustive_max`` results: every subset of size N−1, N−2, …
+    is tested (χ² with its own weighted mean) until a size has a consistent
+    subset; ties go to the smallest χ²_obs.  Larger groups: the sequential
+    approach, dropping the result with the largest |x_i − y|/u_i until
+    consistent.  Diagnostics as :func:`weighted_mean` for the chosen subset,
+    plus n_excluded, consistent_all (the full set passed) and exhaustive.
+    """
+    _check_alpha(alpha)
+    xs, us = _results(x, u, groups)
+    w = 1.0 / us**2
+    everyone = np.ones(groups.size, dtype=np.bool_)
+    full = _consistency(_weighted(xs, w, groups, everyone)[2], groups.counts(), alpha)
+    counts = groups.counts()
+    shift = groups.padded(xs)[:, 0]
+    xp = groups.padded(xs - shift[groups.index], fill=0.0)
+    wp = groups.padded(w, fill=0.0)
+    keep = np.arange(xp.shape[1]) < counts[:, np.newaxis]
+    small = counts <= exhaustive_max
+    todo = ~full["consistent"]
+    for rows, search in ((todo & small, _exhaustive), (todo & ~small, _sequential)):
+        r = np.flatnonzero(rows)
+        if r.size:
+            keep[r] = search(xp[r], wp[r], counts[r], alpha)
+    included = groups.unpad(keep).astype(np.bool_)
+    y, u_y, chi2, n = _weighted(xs, w, groups, included)
+    diagnostics = _consistency(chi2, n, alpha)
+    diagnostics.update(n_excluded=counts - n, consistent_all=full["consistent"], exhaustive=small)
+    return AssignedValues(y, u_y, "largest_consistent_subset", included, diagnostics)
+
+
+def _crit(m: IntArray, alpha: float) -> FloatArray:
+    """χ²_{1−α}(m − 1) for subsets of m results (0 where m = 1: always consistent)."""
+    return np.where(m > 1, stats.chi2.ppf(1.0 - alpha, np.maximum(m - 1, 1)), 0.0)
+
+
+def _exhaustive(xp: FloatArray, wp: FloatArray, n: IntArray, alpha: float) -> BoolArray:
+    """Cox 2007 search on padded rows (inconsistent groups): remove r = 1, 2, …
+    results, all C(n, r) choices at once, until a consistent subset exists."""
+    valid = np.arange(xp.shape[1]) < n[:, np.newaxis]
+    keep = valid.copy()
+    open_ = np.ones(n.size, dtype=np.bool_)
+    for r in range(1, int(n.max())):
+        rows = np.flatnonzero(open_ & (n > r))
+        width = int(n[rows].max())
+        removed = np.array(list(combinations(range(width), r)), dtype=np.intp)
+        best = _best_removal(xp[rows, :width], wp[rows, :width], n[rows], removed, alpha)
+        found = best >= 0
+        hit = rows[found]
+        keep[hit[:, np.newaxis], removed[best[found]]] = False
+        open_[hit] = False
+        if not open_.any():
+            break
+    return keep
+
+
+def _best_removal(
+    xp: FloatArray, wp: FloatArray, n: IntArray, removed: IntArray, alpha: float
+) -> IntArray:
+    """Index into ``removed`` of the consistent removal with the smallest χ²
+    per row, or −1; evaluated in batches of combinations to bound memory."""
+    rows, width = xp.shape
+    crit = _crit(n - removed.shape[1], alpha)
+    best_chi2 = np.full(rows, np.inf)
+    best = np.full(rows, -1, dtype=np.intp)
+    step = max(1, _BATCH_CELLS // (rows * width))
+    for start in range(0, removed.shape[0], step):
+        combo = removed[start : start + step]
+        kept = np.ones((combo.shape[0], width), dtype=np.bool_)
+        kept[np.arange(combo.shape[0])[:, np.newaxis], combo] = False
+        w = np.where(kept[:, np.newaxis, :], wp[np.newaxis], 0.0)  # combos × rows × width
+        y = np.sum(w * xp, axis=2) / np.sum(w, axis=2)
+        chi2 = np.sum(w * (xp - y[..., np.newaxis]) ** 2, axis=2)
+        # one kept result is consistent by definition, whatever rounding leaves in χ²
+        ok = (combo.max(axis=1)[:, np.newaxis] < n) & ((chi2 <= crit) | (crit == 0))
+        chi2 = np.where(ok, chi2, np.inf)
+        arg = np.argmin(chi2, axis=0)
+        low = chi2[arg, np.arange(rows)]
+        better = low < best_chi2
+        best_chi2[better] = low[better]
+        best[better] = start + arg[better]
+    return best
+
+
+def _sequential(xp: FloatArray, wp: FloatArray, n: IntArray, alpha: float) -> BoolArray:
+    """Drop, one at a time, the result with the largest (x_i − y)²/u_i² from every
+    still-inconsistent row (the sequential form of Cox 2007 for large N)."""
+    keep = np.arange(xp.shape[1]) < n[:, np.newaxis]
+    for _ in range(xp.shape[1]):
+        w = np.where(keep, wp, 0.0)
+        y = np.sum(w * xp, axis=1) / np.sum(w, axis=1)
+        contribution = w * (xp - y[:, np.newaxis]) ** 2
+        crit = _crit(keep.sum(axis=1), alpha)
+        bad = (np.sum(contribution, axis=1) > crit) & (crit > 0)
+        if not bad.any():
+            break
+        worst = np.argmax(np.where(keep, contribution, -1.0), axis=1)
+        keep[np.flatnonzero(bad), worst[bad]] = False
+    return keep
+
+
+def dersimonian_laird(x: ArrayLike, u: ArrayLike, groups: Groups) -> AssignedValues:
+    """Random-effects mean, DerSimonian & Laird (1986) as in the NIST Consensus Builder.
+
+    Weights w = 1/u², Q = Σw(x − ȳ_w)², τ² = max(0, (Q − (N−1)) / (S1 − S2/S1)),
+    then μ = Σw*x/Σw* with w* = 1/(u² + τ²), u(μ) = (Σw*)^(−1/2).  A single
+    result gives τ = 0.  Diagnostics: tau ("dark uncertainty"), tau2, q, n.
+    """
+    xs, us = _results(x, u, groups)
+    w = 1.0 / us**2
+    everyone = np.ones(groups.size, dtype=np.bool_)
+    _, _, q, n = _weighted(xs, w, groups, everyone)
+    s1 = groups.sum(w)
+    denom = np.where(n > 1, s1 - groups.sum(w**2) / s1, 1.0)
+    tau2 = np.where(n > 1, np.maximum(0.0, (q - (n - 1)) / denom), 0.0)
+    mu, u_mu, _, _ = _weighted(xs, 1.0 / (us**2 + tau2[groups.index]), groups, everyone)
+    return AssignedValues(
+        value=mu,
+        standard_uncertainty=u_mu,
+        method="dersimonian_laird",
+        included=everyone,
+        diagnostics={"tau": np.sqrt(tau2), "tau2": tau2, "q": q, "n": n},
+    )
+
+
+def sigma_pt_prescribed(
+    value: ArrayLike, n_groups: int, *, x_pt: ArrayLike | None = None, relative: bool = False
+) -> FloatArray:
+    """σ_pt by fitness for purpose, ISO 13528:2022 8.2: absolute, or (``relative``)
+    ``value`` percent of |x_pt|.  Scalars broadcast to ``n_groups``."""
+    sigma = as_finite("sigma_pt", _group_array("sigma_pt", value, n_groups), positive=True)
+    if not relative:
+        return sigma
+    if x_pt is None:
+        raise CoreInputError("a relative sigma_pt needs x_pt")
+    return absolute_from_relative(_group_array("x_pt", x_pt, n_groups), sigma)
+
+
+def sigma_pt_given(value: ArrayLike, n_groups: int) -> FloatArray:
+    """σ_pt given by the coordinator, e.g. from previous rounds (ISO 13528:2022 8.3):
+    validated (finite, > 0) and broadcast to ``n_groups``."""
+    return as_finite("sigma_pt", _group_array("sigma_pt", value, n_groups), positive=True)

@@ -1,0 +1,241 @@
+"""The results table's columns, its row type and the comparison context (formats.md §1)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from functools import cached_property
+from typing import Literal, NamedTuple
+
+from .values import CANONICAL_UNIT
+
+LabColumn = Literal["forbidden", "required", "optional"]
+
+#: Every column of the results table, in the order downloads use.
+COLUMNS = (
+    "lab",
+    "device",
+    "axis",
+    "frequency_hz",
+    "bench",
+    "direction",
+    "amplitude_m_s2",
+    "sensitivity",
+    "unit",
+    "expanded_uncertainty",
+    "coverage_factor",
+    "dof",
+    "note",
+)
+REQUIRED_COLUMNS = (
+    "device",
+    "axis",
+    "frequency_hz",
+    "bench",
+    "sensitivity",
+    "expanded_uncertainty",
+)
+AXES = ("X", "Y", "Z")
+BENCHES = ("linear", "curvilinear")
+DIRECTIONS = ("vertical", "tangential", "radial")
+DIRECTIONS_BY_BENCH: Mapping[str, tuple[str, ...]] = {
+    "linear": ("vertical",),
+    "curvilinear": ("tangential", "radial"),
+}
+NOTE_MAX_CHARS = 500
+DEFAULT_COVERAGE_FACTOR = 2.0
+
+
+class PointKey(NamedTuple):
+    """One measurement point (domain.md §2): device × axis × frequency × bench × direction."""
+
+    device: str
+    axis: str
+    frequency_hz: float
+    bench: str
+    direction: str
+    amplitude_m_s2: float | None = None
+
+
+@dataclass(frozen=True, kw_only=True, slots=True)
+class ResultRow:
+    """One validated result; ``sensitivity`` and ``expanded_uncertainty`` are in ``unit``.
+
+    ``original_unit`` is the unit the lab wrote when it was converted (``mg/LSB``).
+    """
+
+    row: int
+    device: str
+    axis: str
+    frequency_hz: float
+    bench: str
+    direction: str = "vertical"
+    amplitude_m_s2: float | None = None
+    sensitivity: float
+    unit: str = CANONICAL_UNIT
+    expanded_uncertainty: float
+    coverage_factor: float = DEFAULT_COVERAGE_FACTOR
+    dof: float | None = None
+    lab: str | None = None
+    note: str = ""
+    original_unit: str | None = None
+
+    @property
+    def standard_uncertainty(self) -> float:
+        """u = U / k (domain.md §3)."""
+        return self.expanded_uncertainty / self.coverage_factor
+
+    @property
+    def relative_expanded_uncertainty(self) -> float:
+        return self.expanded_uncertainty / self.sensitivity
+
+    @property
+    def point(self) -> PointKey:
+        return PointKey(
+            self.device,
+            self.axis,
+            self.frequency_hz,
+            self.bench,
+            self.direction,
+            self.amplitude_m_s2,
+        )
+
+    def as_record(self) -> dict[str, object]:
+        """The row as table columns (``original_unit`` and ``row`` left out)."""
+        return {column: getattr(self, column) for column in COLUMNS}
+
+
+def _norm_device(name: str) -> str:
+    return " ".join(name.split()).casefold()
+
+
+def _close(a: float, b: float, rel_tol: float) -> bool:
+    return math.isclose(a, b, rel_tol=rel_tol, abs_tol=0.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class TableContext:
+    """What one comparison allows; every field left as ``None`` allows anything.
+
+    ``device_units`` maps each device to its unit; device names match
+    case-insensitively with whitespace collapsed, and rows take the context's
+    spelling. Frequencies match within ``frequency_rel_tol`` and rows take the
+    context's value. ``directions`` maps each bench to its directions; a bench
+    missing from it allows every direction. ``points``, when given, is the
+    exact list of measurement points; build it with :meth:`from_points`.
+    """
+
+    device_units: Mapping[str, str] | None = None
+    axes: tuple[str, ...] = AXES
+    frequencies_hz: tuple[float, ...] | None = None
+    benches: tuple[str, ...] = BENCHES
+    directions: Mapping[str, tuple[str, ...]] = field(
+        default_factory=lambda: dict(DIRECTIONS_BY_BENCH)
+    )
+    points: tuple[PointKey, ...] | None = None
+    default_unit: str = CANONICAL_UNIT
+    frequency_rel_tol: float = 1e-9
+
+    @classmethod
+    def from_points(
+        cls,
+        points: Iterable[PointKey | Sequence[object]],
+        *,
+        device_units: Mapping[str, str] | None = None,
+        default_unit: str = CANONICAL_UNIT,
+        frequency_rel_tol: float = 1e-9,
+    ) -> TableContext:
+        """A context allowing exactly ``points`` (and the values they use)."""
+        keys = tuple(PointKey(*p) for p in points)
+        units = dict(device_units or {})
+        devices = {p.device: units.get(p.device, default_unit) for p in keys}
+        directions: dict[str, tuple[str, ...]] = {}
+        for p in keys:
+            if p.direction not in directions.setdefault(p.bench, ()):
+                directions[p.bench] += (p.direction,)
+        return cls(
+            device_units=devices,
+            axes=tuple(dict.fromkeys(p.axis for p in keys)),
+            frequencies_hz=tuple(dict.fromkeys(p.frequency_hz for p in keys)),
+            benches=tuple(directions),
+            directions=directions,
+            points=keys,
+            default_unit=default_unit,
+            frequency_rel_tol=frequency_rel_tol,
+        )
+
+    def unit_for_device(self, device: str) -> str:
+        units = self.device_units or {}
+        return units.get(self.canonical_device(device) or device, self.default_unit)
+
+    def has_unit_for(self, device: str) -> bool:
+        return self.device_units is not None and self.canonical_device(device) is not None
+
+    @cached_property
+    def _devices(self) -> dict[str, str]:
+        return {_norm_device(name): name for name in self.device_units or {}}
+
+    def canonical_device(self, device: str) -> str | None:
+        """The context's spelling of ``device``; ``None`` if unknown (any device without a list)."""
+        if self.device_units is None:
+            return device
+        return self._devices.get(_norm_device(device))
+
+    def canonical_frequency(self, frequency_hz: float) -> float | None:
+        if self.frequencies_hz is None:
+            return frequency_hz
+        for allowed in self.frequencies_hz:
+            if _close(allowed, frequency_hz, self.frequency_rel_tol):
+                return allowed
+        return None
+
+    def directions_for(self, bench: str) -> tuple[str, ...]:
+        return tuple(self.directions.get(bench, DIRECTIONS))
+
+    @cached_property
+    def _point_index(self) -> dict[tuple[str, str, str, str], list[PointKey]]:
+        index: dict[tuple[str, str, str, str], list[PointKey]] = {}
+        for p in self.points or ():
+            index.setdefault((p.device, p.axis, p.bench, p.direction), []).append(p)
+        return index
+
+    def matching_points(self, row: ResultRow | PointKey) -> list[PointKey]:
+        """The context's points a row fits; an unset amplitude on either side matches any."""
+        key = (row.device, row.axis, row.bench, row.direction)
+        found = []
+        for p in self._point_index.get(key, ()):
+            if not _close(p.frequency_hz, row.frequency_hz, self.frequency_rel_tol):
+                continue
+            a, b = p.amplitude_m_s2, row.amplitude_m_s2
+            if a is None or b is None or _close(a, b, self.frequency_rel_tol):
+                found.append(p)
+        return found
+
+    def expected_points(self) -> tuple[PointKey, ...]:
+        """``points``, or else every device × axis × frequency × (bench, direction)."""
+        if self.points is not None:
+            return self.points
+        if self.device_units is None or self.frequencies_hz is None:
+            raise ValueError("the context lists neither its points nor its devices and frequencies")
+        return tuple(
+            PointKey(device, axis, frequency, bench, direction)
+            for device in self.device_units
+            for axis in self.axes
+            for frequency in self.frequencies_hz
+            for bench in self.benches
+            for direction in self.directions_for(bench)
+        )
+
+
+def missing_points(rows: Iterable[ResultRow], context: TableContext) -> list[PointKey]:
+    """The context's measurement points no row covers, in the context's order.
+
+    For a coordinator's table with several labs, call it with one lab's rows.
+    """
+    expected = context.expected_points()
+    probe = TableContext.from_points(expected, frequency_rel_tol=context.frequency_rel_tol)
+    covered: set[PointKey] = set()
+    for row in rows:
+        covered.update(probe.matching_points(row))
+    return [p for p in expected if p not in covered]

@@ -1,0 +1,171 @@
+"""Results tables (formats.md §1): parse CSV/XLSX/JSON into rows, write CSV/XLSX.
+
+Pure Python, no Django: the web upload, the REST API and the offline
+``pt_compare`` command all call :func:`parse_table` or :func:`parse_rows`,
+which share one validation (:func:`labs.importers.validate.validate_records`).
+A table that does not fit raises :class:`ImportErrors` listing every problem.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Literal
+
+from .errors import RowError, fatal
+from .readers import read_sheet
+from .schema import COLUMNS, LabColumn, ResultRow, TableContext
+from .validate import cells_to_record, check_header, normalise_name, validate_records
+from .values import escape_text, format_number, human_size
+
+MAX_BYTES = 5 * 2**20
+MAX_ROWS = 100_000
+
+__all__ = ["MAX_BYTES", "MAX_ROWS", "parse_rows", "parse_table", "write_table"]
+
+
+def parse_table(
+    data: bytes,
+    *,
+    filename: str | None = None,
+    content_type: str | None = None,
+    lab_column: LabColumn = "optional",
+    context: TableContext | None = None,
+    max_bytes: int = MAX_BYTES,
+    max_rows: int = MAX_ROWS,
+) -> list[ResultRow]:
+    """Parse a CSV or XLSX results table; raise :class:`ImportErrors` listing every problem.
+
+    ``ResultRow.row`` is the spreadsheet row number (header = row 1). Header
+    problems (unknown, repeated or missing columns) are reported alone, before
+    any row is read. ``lab_column``: ``forbidden`` for a participant's upload,
+    ``required`` for a coordinator's or ``pt_compare``'s table.
+    """
+    if len(data) > max_bytes:
+        raise fatal(f"the file is {human_size(len(data))}; the limit is {human_size(max_bytes)}")
+    sheet = read_sheet(data, filename=filename, content_type=content_type, max_rows=max_rows)
+    columns = check_header(sheet.header, lab_column=lab_column, row=sheet.header_row)
+    errors = list(sheet.errors)
+    records = []
+    for number, cells in sheet.rows:
+        record, cell_errors = cells_to_record(columns, cells, number)
+        errors.extend(cell_errors)
+        records.append((number, record))
+    return validate_records(
+        records,
+        decimal_comma=sheet.decimal_comma,
+        lab_column=lab_column,
+        context=context,
+        errors=errors,
+    )
+
+
+def parse_rows(
+    rows: Sequence[object],
+    *,
+    lab_column: LabColumn = "optional",
+    context: TableContext | None = None,
+    max_rows: int = MAX_ROWS,
+) -> list[ResultRow]:
+    """Validate results given as JSON objects (the API's ``{"results": [...]}``).
+
+    Same columns and rules as :func:`parse_table`; keys are case-insensitive.
+    Values may be JSON numbers or strings (decimal point only). ``row`` in
+    results and errors is the 1-based index of the object in ``rows``.
+    """
+    if len(rows) > max_rows:
+        raise fatal(f"{len(rows)} results were given; the limit is {max_rows}")
+    errors: list[RowError] = []
+    records: list[tuple[int, Mapping[str, object]]] = []
+    for number, item in enumerate(rows, start=1):
+        record, item_errors = _object_to_record(item, number)
+        errors.extend(item_errors)
+        if record is not None:
+            records.append((number, record))
+    return validate_records(records, lab_column=lab_column, context=context, errors=errors)
+
+
+def _object_to_record(item: object, number: int) -> tuple[dict[str, object] | None, list[RowError]]:
+    if not isinstance(item, Mapping):
+        return None, [RowError(number, None, "must be an object whose keys are column names")]
+    record: dict[str, object] = {}
+    errors = []
+    for key, value in item.items():
+        name = normalise_name(key)
+        if name not in COLUMNS:
+            errors.append(
+                RowError(number, str(key), f"unknown field; allowed: {', '.join(COLUMNS)}")
+            )
+        elif name in record:
+            errors.append(RowError(number, name, "is given more than once"))
+        elif not (value is None or isinstance(value, str | int | float)):
+            errors.append(RowError(number, name, "must be a string or a number"))
+        else:
+            record[name] = value
+    return record, errors
+
+
+def _cell(value: object) -> object:
+    """A value as written: numbers stay numbers, text is escaped against formula execution."""
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return str(value).upper()
+    if isinstance(value, int | float):
+        return value if math.isfinite(value) else format_number(float(value))
+    return escape_text(str(value))
+
+
+def _default_columns(records: Sequence[Mapping[str, object]]) -> list[str]:
+    has_lab = any(record.get("lab") not in (None, "") for record in records)
+    return [c for c in COLUMNS if c != "lab" or has_lab]
+
+
+def write_table(
+    rows: Iterable[ResultRow | Mapping[str, object]],
+    *,
+    format: Literal["csv", "xlsx"] = "csv",
+    columns: Sequence[str] | None = None,
+    delimiter: str = ",",
+    bom: bool = True,
+) -> bytes:
+    """Write a results table (downloads, templates) that :func:`parse_table` reads back.
+
+    ``columns`` defaults to every column of formats.md §1, ``lab`` only when a
+    row has one; mappings may carry other columns (scores). Numbers are written
+    in full precision with a decimal point; formula-like text gets a leading
+    quote. CSV is UTF-8 with a BOM (for spreadsheets) unless ``bom=False``.
+    """
+    records = [r.as_record() if isinstance(r, ResultRow) else dict(r) for r in rows]
+    names = list(columns) if columns is not None else _default_columns(records)
+    table = [[_cell(record.get(name)) for name in names] for record in records]
+    if format == "csv":
+        return _write_csv(names, table, delimiter=delimiter, bom=bom)
+    if format == "xlsx":
+        return _write_xlsx(names, table)
+    raise ValueError(f"unknown format {format!r}; use 'csv' or 'xlsx'")
+
+
+def _write_csv(names: list[str], table: list[list[object]], *, delimiter: str, bom: bool) -> bytes:
+    buffer = io.StringIO(newline="")
+    writer = csv.writer(buffer, delimiter=delimiter, lineterminator="\r\n")
+    writer.writerow(names)
+    writer.writerows([[repr(v) if isinstance(v, float) else v for v in row] for row in table])
+    return ("\ufeff" if bom else "").encode() + buffer.getvalue().encode("utf-8")
+
+
+def _write_xlsx(names: list[str], table: list[list[object]]) -> bytes:
+    from openpyxl import Workbook
+    from openpyxl.cell.cell import ILLEGAL_CHARACTERS_RE
+
+    workbook = Workbook(write_only=True)
+    sheet = workbook.create_sheet("results")
+    sheet.append(names)
+    for row in table:
+        # XML cannot hold control characters; they are dropped from text cells.
+        sheet.append([ILLEGAL_CHARACTERS_RE.sub("", v) if isinstance(v, str) else v for v in row])
+    buffer = io.BytesIO()
+    workbook.save(buffer)
+    return buffer.getvalue()

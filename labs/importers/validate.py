@@ -1,0 +1,377 @@
+"""The one validation of results rows, shared by CSV, XLSX and JSON input (formats.md §1)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+
+from .errors import ImportErrors, RowError
+from .schema import (
+    AXES,
+    BENCHES,
+    COLUMNS,
+    DEFAULT_COVERAGE_FACTOR,
+    DIRECTIONS,
+    NOTE_MAX_CHARS,
+    REQUIRED_COLUMNS,
+    LabColumn,
+    ResultRow,
+    TableContext,
+)
+from .values import (
+    CANONICAL_UNIT,
+    MG_PER_LSB,
+    ValueProblem,
+    cell_text,
+    display,
+    format_number,
+    is_blank,
+    mg_per_lsb_to_canonical,
+    normalise_unit,
+    parse_number,
+)
+
+_ALLOWED = ", ".join(COLUMNS)
+
+
+def normalise_name(name: object) -> str:
+    return cell_text(name).lower()
+
+
+def check_header(names: Sequence[object], *, lab_column: LabColumn, row: int) -> list[str]:
+    """Column name per position ('' for a blank header cell), or every header problem."""
+    columns = [normalise_name(name) for name in names]
+    errors: list[RowError] = []
+    unknown = [c for c in columns if c and c not in COLUMNS]
+    if unknown:
+        hint = " (tab-separated files are not supported)" if any("\t" in c for c in unknown) else ""
+        errors.append(
+            RowError(
+                row,
+                None,
+                f"unknown column(s) {', '.join(map(repr, unknown))}"
+                f"{hint}; the allowed columns are: {_ALLOWED}",
+            )
+        )
+    for name in dict.fromkeys(c for c in columns if c):
+        positions = [str(i + 1) for i, c in enumerate(columns) if c == name]
+        if len(positions) > 1:
+            errors.append(
+                RowError(row, name, f"appears more than once (columns {', '.join(positions)})")
+            )
+    required = REQUIRED_COLUMNS + (("lab",) if lab_column == "required" else ())
+    missing = [c for c in required if c not in columns]
+    if missing:
+        errors.append(RowError(row, None, f"missing required column(s): {', '.join(missing)}"))
+    if errors:
+        raise ImportErrors(errors)
+    return columns
+
+
+def cells_to_record(
+    columns: Sequence[str], cells: Sequence[object], row: int
+) -> tuple[dict[str, object], list[RowError]]:
+    """Pair a row's cells with the header; a value under no header is an error."""
+    record: dict[str, object] = {}
+    errors = []
+    for index, value in enumerate(cells):
+        name = columns[index] if index < len(columns) else ""
+        if name:
+            record[name] = value
+        elif not is_blank(value):
+            errors.append(
+                RowError(
+                    row,
+                    None,
+                    f"value {display(value)!r} in column {index + 1}, which has no header",
+                )
+            )
+    return record, errors
+
+
+class _RowCheck:
+    """Reads one record's fields, collecting a :class:`RowError` per bad column."""
+
+    def __init__(self, record: Mapping[str, object], row: int, decimal_comma: bool) -> None:
+        self.record = record
+        self.row = row
+        self.decimal_comma = decimal_comma
+        self.errors: list[RowError] = []
+
+    def fail(self, field: str | None, message: str) -> None:
+        self.errors.append(RowError(self.row, field, message))
+
+    def text(self, field: str) -> str:
+        return cell_text(self.record.get(field))
+
+    def number(
+        self, field: str, *, required: bool = False, allow_inf: bool = False
+    ) -> float | None:
+        raw = self.record.get(field)
+        if is_blank(raw):
+            if required:
+                self.fail(field, "is required")
+            return None
+        try:
+            value = parse_number(raw, decimal_comma=self.decimal_comma, allow_inf=allow_inf)
+        except ValueProblem as problem:
+            self.fail(field, str(problem))
+            return None
+        if not value > 0:
+            self.fail(field, f"must be > 0, got {display(raw)}")
+            return None
+        return value
+
+    def choice(
+        self, field: str, allowed: Sequence[str], universe: Sequence[str], what: str = ""
+    ) -> str | None:
+        """One of ``allowed`` (case-insensitive); ``universe`` tells a typo from a value
+        that exists but is not part of this comparison (or bench)."""
+        given = self.text(field)
+        if not given:
+            self.fail(field, "is required")
+            return None
+        found = _pick(given, allowed)
+        if found is not None:
+            return found
+        if _pick(given, universe) is None:
+            self.fail(field, f"must be one of {', '.join(universe)}, got {given!r}")
+            return None
+        where = what or "in this comparison"
+        self.fail(field, f"{given!r} is not allowed {where}; expected one of: {', '.join(allowed)}")
+        return None
+
+
+def _pick(given: str, options: Iterable[str]) -> str | None:
+    for option in options:
+        if option.casefold() == given.casefold():
+            return option
+    return None
+
+
+def _device(check: _RowCheck, context: TableContext | None) -> str | None:
+    device = " ".join(check.text("device").split())
+    if not device:
+        check.fail("device", "is required")
+        return None
+    if context is None:
+        return device
+    known = context.canonical_device(device)
+    if known is None:
+        expected = ", ".join(context.device_units or ())
+        check.fail(
+            "device", f"unknown device {device!r} for this comparison; expected one of: {expected}"
+        )
+    return known
+
+
+def _frequency(check: _RowCheck, context: TableContext | None) -> float | None:
+    frequency = check.number("frequency_hz", required=True)
+    if frequency is None or context is None:
+        return frequency
+    known = context.canonical_frequency(frequency)
+    if known is None:
+        expected = ", ".join(format_number(f) for f in context.frequencies_hz or ())
+        check.fail(
+            "frequency_hz",
+            f"{format_number(frequency)} Hz is not a frequency of this "
+            f"comparison; expected one of: {expected}",
+        )
+    return known
+
+
+def _direction(check: _RowCheck, bench: str | None, context: TableContext | None) -> str | None:
+    """Vertical goes with the linear bench, tangential and radial with the curvilinear one."""
+    if bench is None:
+        return None
+    allowed = (context or TableContext()).directions_for(bench)
+    if not check.text("direction"):
+        if len(allowed) == 1:
+            return allowed[0]
+        check.fail("direction", f"is required on the {bench} bench: one of {', '.join(allowed)}")
+        return None
+    universe = tuple(dict.fromkeys((*DIRECTIONS, *allowed)))
+    return check.choice("direction", allowed, universe, f"on the {bench} bench")
+
+
+def _uncertainty(check: _RowCheck) -> tuple[float, bool] | None:
+    """Expanded uncertainty and whether it was given in % of the sensitivity."""
+    raw = check.record.get("expanded_uncertainty")
+    if isinstance(raw, str) and raw.strip().endswith("%"):
+        shown = raw.strip()
+        try:
+            value = parse_number(shown[:-1], decimal_comma=check.decimal_comma)
+        except ValueProblem:
+            check.fail("expanded_uncertainty", f"must be a number or a percentage, got {shown!r}")
+            return None
+        if not value > 0:
+            check.fail("expanded_uncertainty", f"must be > 0, got {shown}")
+            return None
+        return value, True
+    absolute = check.number("expanded_uncertainty", required=True)
+    return None if absolute is None else (absolute, False)
+
+
+def _unit(check: _RowCheck, device: str | None, context: TableContext | None) -> str | None:
+    given = check.text("unit")
+    extra = tuple((context.device_units or {}).values()) if context else ()
+    if not given:
+        return context.unit_for_device(device or "") if context else CANONICAL_UNIT
+    try:
+        unit = normalise_unit(given, extra)
+    except ValueProblem as problem:
+        check.fail("unit", str(problem))
+        return None
+    resulting = CANONICAL_UNIT if unit == MG_PER_LSB else unit
+    if context and device and context.has_unit_for(device):
+        expected = context.unit_for_device(device)
+        if resulting != expected:
+            check.fail(
+                "unit",
+                f"{given!r} does not fit {device}, whose unit in this comparison is {expected}",
+            )
+    return unit
+
+
+def _lab(check: _RowCheck, lab_column: LabColumn) -> str | None:
+    lab = check.text("lab")
+    if lab and lab_column == "forbidden":
+        check.fail(
+            "lab",
+            "is not allowed here: results are filed under your own laboratory; "
+            "remove the lab column",
+        )
+    elif not lab and lab_column == "required":
+        check.fail("lab", "is required")
+    return lab or None
+
+
+def _note(check: _RowCheck) -> str:
+    note = check.text("note")
+    if len(note) > NOTE_MAX_CHARS:
+        check.fail("note", f"must be at most {NOTE_MAX_CHARS} characters, got {len(note)}")
+    return note
+
+
+def _check_point(check: _RowCheck, row: ResultRow, context: TableContext | None) -> None:
+    if context is None or context.points is None:
+        return
+    found = context.matching_points(row)
+    if not found:
+        check.fail(
+            None,
+            f"no measurement point {row.device} / {row.axis} / "
+            f"{format_number(row.frequency_hz)} Hz / {row.bench} / {row.direction}"
+            " in this comparison",
+        )
+    elif len(found) > 1:
+        options = ", ".join(
+            "none" if p.amplitude_m_s2 is None else format_number(p.amplitude_m_s2) for p in found
+        )
+        check.fail(
+            "amplitude_m_s2", f"is needed to tell the measurement points apart: one of {options}"
+        )
+
+
+def validate_record(
+    record: Mapping[str, object],
+    row: int,
+    *,
+    decimal_comma: bool = False,
+    lab_column: LabColumn = "optional",
+    context: TableContext | None = None,
+) -> ResultRow | list[RowError]:
+    """One record (column name -> cell value) to a :class:`ResultRow` or its errors."""
+    check = _RowCheck(record, row, decimal_comma)
+    device = _device(check, context)
+    axis = check.choice("axis", context.axes if context else AXES, AXES)
+    frequency = _frequency(check, context)
+    benches = context.benches if context else BENCHES
+    bench = check.choice("bench", benches, tuple(dict.fromkeys((*BENCHES, *benches))))
+    direction = _direction(check, bench, context)
+    amplitude = check.number("amplitude_m_s2")
+    sensitivity = check.number("sensitivity", required=True)
+    unit = _unit(check, device, context)
+    uncertainty = _uncertainty(check)
+    coverage = check.number("coverage_factor")
+    dof = check.number("dof", allow_inf=True)
+    lab = _lab(check, lab_column)
+    note = _note(check)
+    if check.errors:
+        return check.errors
+    assert device and axis and frequency and bench and direction and sensitivity and unit
+    assert uncertainty is not None
+    value, relative = uncertainty
+    expanded = sensitivity * value / 100 if relative else value
+    original_unit = None
+    if unit == MG_PER_LSB:
+        # The relative uncertainty is kept through the inversion (domain.md §2).
+        converted = mg_per_lsb_to_canonical(sensitivity)
+        expanded, sensitivity = converted * expanded / sensitivity, converted
+        unit, original_unit = CANONICAL_UNIT, MG_PER_LSB
+    result = ResultRow(
+        row=row, device=device, axis=axis, frequency_hz=frequency, bench=bench,
+        direction=direction, amplitude_m_s2=amplitude, sensitivity=sensitivity, unit=unit,
+        expanded_uncertainty=expanded,
+        coverage_factor=DEFAULT_COVERAGE_FACTOR if coverage is None else coverage,
+        dof=dof, lab=lab, note=note, original_unit=original_unit,
+    )  # fmt: skip
+    _check_point(check, result, context)
+    return check.errors or result
+
+
+def _duplicate_key(row: ResultRow) -> tuple[object, ...]:
+    amplitude = None if row.amplitude_m_s2 is None else float(f"{row.amplitude_m_s2:.12g}")
+    frequency = float(f"{row.frequency_hz:.12g}")
+    return (row.lab, row.device, row.axis, frequency, row.bench, row.direction, amplitude)
+
+
+def find_duplicates(rows: Iterable[ResultRow]) -> list[RowError]:
+    """An error on every row that repeats the measurement point of an earlier row."""
+    first: dict[tuple[object, ...], int] = {}
+    errors = []
+    for row in rows:
+        earlier = first.setdefault(_duplicate_key(row), row.row)
+        if earlier != row.row:
+            errors.append(
+                RowError(
+                    row.row,
+                    None,
+                    f"duplicate of row {earlier}: same lab, device, "
+                    "axis, frequency_hz, bench, direction and "
+                    "amplitude_m_s2",
+                )
+            )
+    return errors
+
+
+def validate_records(
+    records: Iterable[tuple[int, Mapping[str, object]]],
+    *,
+    decimal_comma: bool = False,
+    lab_column: LabColumn = "optional",
+    context: TableContext | None = None,
+    errors: Iterable[RowError] = (),
+) -> list[ResultRow]:
+    """Validate every record and raise :class:`ImportErrors` listing all problems."""
+    found = list(errors)
+    rows: list[ResultRow] = []
+    for row_number, record in records:
+        result = validate_record(record, row_number, decimal_comma=decimal_comma,
+                                 lab_column=lab_column, context=context)  # fmt: skip
+        if isinstance(result, ResultRow):
+            rows.append(result)
+        else:
+            found.extend(result)
+    found.extend(find_duplicates(rows))
+    if not rows and not found:
+        found.append(RowError(None, None, "the table has no data rows"))
+    if found:
+        raise ImportErrors(sorted(found, key=_error_order))
+    return rows
+
+
+_COLUMN_ORDER = {name: index for index, name in enumerate(COLUMNS)}
+
+
+def _error_order(error: RowError) -> tuple[int, int]:
+    return (error.row or 0, _COLUMN_ORDER.get(error.field or "", len(COLUMNS)))

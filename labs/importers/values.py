@@ -1,0 +1,168 @@
+"""Cell values to typed values: numbers, text, units, formula escaping.
+
+Cells arrive as text (CSV, XLSX text cells, JSON strings) or as numbers (XLSX
+numeric cells, JSON numbers). Units follow domain.md §2.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import functools
+import math
+import re
+from collections.abc import Iterable
+
+#: A text cell starting with one of these is executed by some spreadsheets.
+FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r")
+_ESCAPED_FOLLOWERS = (*FORMULA_TRIGGERS, "'")
+
+_NUMBER_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+_INFINITY = {"inf", "+inf", "infinity", "+infinity"}
+_NON_FINITE = {"nan", "+nan", "-nan", "-inf", "-infinity", *_INFINITY}
+
+#: Standard acceleration of gravity, m/s² (CGPM 1901), for mg/LSB conversion.
+STANDARD_GRAVITY = 9.80665
+CANONICAL_UNIT = "D/(m/s^2)"
+MG_PER_LSB = "mg/LSB"
+KNOWN_UNITS = (CANONICAL_UNIT, "mV/(m/s^2)", "pC/(m/s^2)", MG_PER_LSB)
+_UNIT_SYNONYMS = {"lsb/(m/s^2)": CANONICAL_UNIT, "digits/(m/s^2)": CANONICAL_UNIT}
+
+
+class ValueProblem(ValueError):
+    """A cell value that does not fit; the message follows the column name."""
+
+
+def escape_text(text: str) -> str:
+    """Prefix formula-like text with a single quote (OWASP CSV injection).
+
+    A leading quote that :func:`unescape_text` would strip is escaped too, so
+    that ``unescape_text(escape_text(s)) == s`` for every string.
+    """
+    if text[:1] in FORMULA_TRIGGERS or (text[:1] == "'" and text[1:2] in _ESCAPED_FOLLOWERS):
+        return "'" + text
+    return text
+
+
+def unescape_text(text: str) -> str:
+    """Undo :func:`escape_text`: drop a quote put before formula-like text."""
+    if text[:1] == "'" and text[1:2] in _ESCAPED_FOLLOWERS and text[1:2]:
+        return text[1:]
+    return text
+
+
+def is_blank(raw: object) -> bool:
+    return raw is None or (isinstance(raw, str) and not raw.strip())
+
+
+def format_number(value: float) -> str:
+    """Short display of a number in messages: ``-3`` rather than ``-3.0``."""
+    if math.isfinite(value) and value == int(value) and abs(value) < 1e15:
+        return str(int(value))
+    return repr(value)
+
+
+def display(raw: object) -> str:
+    """How a cell value is quoted back to the user in a message."""
+    if isinstance(raw, str):
+        return raw.strip()
+    if isinstance(raw, float | int) and not isinstance(raw, bool):
+        return format_number(float(raw))
+    return str(raw)
+
+
+def cell_text(raw: object) -> str:
+    """A cell as trimmed text; numeric cells (XLSX, JSON) in their short form."""
+    if raw is None:
+        return ""
+    if isinstance(raw, bool):
+        return str(raw).upper()
+    if isinstance(raw, float | int):
+        return format_number(float(raw))
+    return unescape_text(str(raw).strip())
+
+
+def parse_number(raw: object, *, decimal_comma: bool, allow_inf: bool = False) -> float:
+    """A finite float from a numeric cell or from text.
+
+    Text accepts a decimal point, or a decimal comma when ``decimal_comma``
+    (semicolon-separated CSV); no thousands separators. ``nan`` and ``inf``
+    are refused, except ``inf`` when ``allow_inf`` (degrees of freedom).
+    """
+    if isinstance(raw, bool):
+        raise ValueProblem(f"must be a number, got {raw}")
+    if isinstance(raw, int | float):
+        try:
+            value = float(raw)
+        except OverflowError:
+            raise ValueProblem(f"must be a finite number, got {raw}") from None
+        return _finite(value, display(raw), allow_inf)
+    if isinstance(raw, dt.date | dt.time | dt.datetime):
+        raise ValueProblem(f"must be a number, got a date or time ({raw})")
+    if not isinstance(raw, str):
+        raise ValueProblem(f"must be a number, got {type(raw).__name__}")
+    return _parse_number_text(unescape_text(raw.strip()), decimal_comma, allow_inf)
+
+
+def _finite(value: float, shown: str, allow_inf: bool) -> float:
+    if math.isnan(value) or (math.isinf(value) and not (allow_inf and value > 0)):
+        raise ValueProblem(f"must be a finite number, got {shown}")
+    return value
+
+
+def _parse_number_text(text: str, decimal_comma: bool, allow_inf: bool) -> float:
+    lowered = text.lower()
+    if allow_inf and lowered in _INFINITY:
+        return math.inf
+    if lowered in _NON_FINITE:
+        raise ValueProblem(f"must be a finite number, got {text!r}")
+    if "," in text:
+        if not decimal_comma:
+            raise ValueProblem(
+                f"must be a number with a decimal point, got {text!r} (a decimal comma "
+                "is accepted only in semicolon-separated files)"
+            )
+        if text.count(",") > 1 or "." in text:
+            raise ValueProblem(f"must be a number without thousands separators, got {text!r}")
+        text_for_float = text.replace(",", ".")
+    else:
+        text_for_float = text
+    if not _NUMBER_RE.fullmatch(text_for_float):
+        raise ValueProblem(f"must be a number, got {text!r}")
+    return _finite(float(text_for_float), repr(text), allow_inf)
+
+
+def _unit_key(text: str) -> str:
+    return text.strip().replace(" ", "").replace("²", "^2").replace("s2)", "s^2)").lower()
+
+
+@functools.lru_cache(maxsize=64)
+def _unit_table(extra_units: tuple[str, ...]) -> dict[str, str]:
+    known = {_unit_key(unit): unit for unit in (*KNOWN_UNITS, *extra_units)}
+    return {**known, **_UNIT_SYNONYMS}
+
+
+def normalise_unit(text: str, extra_units: Iterable[str] = ()) -> str:
+    """The canonical spelling of a sensitivity unit, or :class:`ValueProblem`.
+
+    ``LSB/(m/s^2)`` is a synonym of ``D/(m/s^2)``; ``mg/LSB`` is returned as is
+    and converted by :func:`mg_per_lsb_to_canonical`.
+    """
+    extra = tuple(extra_units)
+    try:
+        return _unit_table(extra)[_unit_key(text)]
+    except KeyError:
+        allowed = ", ".join(sorted({*KNOWN_UNITS, *extra, "LSB/(m/s^2)"}))
+        raise ValueProblem(f"unknown unit {text.strip()!r}; allowed: {allowed}") from None
+
+
+def mg_per_lsb_to_canonical(value: float) -> float:
+    """Invert a datasheet sensitivity: S = 1 / (v · 1e-3 · g) in D/(m/s²) (domain.md §2)."""
+    return 1.0 / (value * 1e-3 * STANDARD_GRAVITY)
+
+
+def human_size(n_bytes: float) -> str:
+    """``6.2 MB``, ``5 MB``, ``12 kB``, ``300 bytes`` (binary multiples)."""
+    for size, name in ((2**20, "MB"), (2**10, "kB")):
+        if n_bytes >= size:
+            return f"{n_bytes / size:.1f}".removesuffix(".0") + f" {name}"
+    return f"{int(n_bytes)} bytes"

@@ -1,0 +1,351 @@
+"""Assigned-value methods: hand-computed cases, brute-force references, properties."""
+
+from __future__ import annotations
+
+import math
+from itertools import combinations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from analysis.core.assigned import (
+    dersimonian_laird,
+    largest_consistent_subset,
+    nominal_value,
+    reference_value,
+    sigma_pt_given,
+    sigma_pt_prescribed,
+    weighted_mean,
+)
+from analysis.core.groups import CoreInputError, Groups
+from analysis.core.types import AssignedValues
+
+CHI2_95_2DOF = 5.991464547  # printed χ² table, ν = 2, 95 %
+
+values = st.lists(
+    st.tuples(
+        st.floats(min_value=-10.0, max_value=10.0, allow_nan=False),
+        st.floats(min_value=0.1, max_value=5.0, allow_nan=False),
+    ),
+    min_size=1,
+    max_size=8,
+)
+
+
+def g0(n: int) -> Groups:
+    return Groups.from_index(np.zeros(n, dtype=int))
+
+
+def brute_force_lcs(x: list[float], u: list[float], alpha: float = 0.05) -> tuple[int, ...]:
+    """Cox 2007 by plain enumeration, independent of the module (scipy only for χ²)."""
+    from scipy.stats import chi2
+
+    for size in range(len(x), 0, -1):
+        best: tuple[float, tuple[int, ...]] | None = None
+        for subset in combinations(range(len(x)), size):
+            w = [1 / u[i] ** 2 for i in subset]
+            y = sum(wi * x[i] for wi, i in zip(w, subset, strict=True)) / sum(w)
+            c2 = sum(wi * (x[i] - y) ** 2 for wi, i in zip(w, subset, strict=True))
+            if (size == 1 or c2 <= chi2.ppf(1 - alpha, size - 1)) and (
+                best is None or c2 < best[0]
+            ):
+                best = (c2, subset)
+        if best is not None:
+            return best[1]
+    raise AssertionError("unreachable")
+
+
+# --- reference laboratory -------------------------------------------------------------
+
+
+def test_reference_value() -> None:
+    groups = Groups.from_index([0, 0, 1, 1, 1])
+    a = reference_value(
+        [10.0, 11.0, 20.0, 21.0, 22.0], [0.1, 0.2, 0.3, 0.4, 0.5], groups,
+        np.array([False, True, False, False, True]),
+    )  # fmt: skip
+    np.testing.assert_array_equal(a.value, [11.0, 22.0])
+    np.testing.assert_array_equal(a.standard_uncertainty, [0.2, 0.5])
+    np.testing.assert_array_equal(a.diagnostics["reference_index"], [1, 4])
+    np.testing.assert_array_equal(a.included, [False, True, False, False, True])
+    assert a.method == "reference" and a.n_groups == 2
+
+
+@pytest.mark.parametrize(
+    ("is_ref", "match"),
+    [
+        ([True, False, False], "group 1 has no reference result"),
+        ([True, True, True], "group 0 has 2 reference results"),
+    ],
+)
+def test_reference_value_errors_name_the_group(is_ref: list[bool], match: str) -> None:
+    with pytest.raises(CoreInputError, match=match):
+        reference_value([1.0, 2.0, 3.0], [1.0] * 3, Groups.from_index([0, 0, 1]), np.array(is_ref))
+
+
+# --- nominal value --------------------------------------------------------------------
+
+
+def test_nominal_value_reference_fact() -> None:
+    # 418 ± 1 % rectangular: u = 4.18/√3 = 2.413324; also given absolutely as ± 4.18
+    groups = Groups.from_index([0, 0, 1])
+    rel = nominal_value(418.0, 1.0, groups, relative=True)
+    ab = nominal_value([418.0, 418.0], 4.18, groups)
+    np.testing.assert_allclose(rel.standard_uncertainty, [4.18 / math.sqrt(3)] * 2, rtol=1e-14)
+    np.testing.assert_allclose(ab.standard_uncertainty, rel.standard_uncertainty, rtol=1e-14)
+    assert round(float(rel.standard_uncertainty[0]), 3) == 2.413
+    assert not rel.included.any() and rel.included.shape == (3,)
+    normal = nominal_value(418.0, 4.0, groups, distribution="normal", k=2.0)
+    np.testing.assert_array_equal(normal.standard_uncertainty, [2.0, 2.0])
+    with pytest.raises(CoreInputError, match="tolerance"):
+        nominal_value(418.0, 0.0, groups)
+    with pytest.raises(CoreInputError, match="one value per group"):
+        nominal_value([418.0, 1.0, 2.0], 1.0, groups)
+
+
+# --- weighted mean --------------------------------------------------------------------
+
+
+def test_weighted_mean_by_hand() -> None:
+    # x = (10, 11, 12), u = (1, 1, 2): w = (1, 1, 0.25), Σw = 2.25
+    # y = (10 + 11 + 0.25·12)/2.25 = 24/2.25 = 10.666667 ; u(y) = 2.25^(-1/2) = 0.666667
+    # χ² = 0.666667²·1 + 0.333333²·1 + 1.333333²·0.25 = 0.444444 + 0.111111 + 0.444444 = 1
+    # ν = 2: p = exp(−χ²/2) = 0.606531 ; R_B = √(1/2) = 0.707107
+    a = weighted_mean([10.0, 11.0, 12.0], [1.0, 1.0, 2.0], g0(3))
+    d = a.diagnostics
+    assert a.value[0] == pytest.approx(24 / 2.25, rel=1e-15)
+    assert a.standard_uncertainty[0] == pytest.approx(2 / 3, rel=1e-15)
+    assert d["chi2_obs"][0] == pytest.approx(1.0, rel=1e-13)
+    assert d["dof"][0] == 2 and d["n"][0] == 3
+    assert d["chi2_crit"][0] == pytest.approx(CHI2_95_2DOF, rel=1e-9)
+    assert d["p_value"][0] == pytest.approx(math.exp(-0.5), rel=1e-12)
+    assert d["birge_ratio"][0] == pytest.approx(math.sqrt(0.5), rel=1e-13)
+    assert d["consistent"][0]
+    assert a.included.all() and a.method == "weighted_mean"
+
+
+def test_weighted_mean_alpha_changes_critical_value() -> None:
+    # χ²_0.99(2) = 9.210340 from printed tables
+    a = weighted_mean([10.0, 11.0, 12.0], [1.0, 1.0, 2.0], g0(3), alpha=0.01)
+    assert a.diagnostics["chi2_crit"][0] == pytest.approx(9.210340372, rel=1e-9)
+
+
+def test_weighted_mean_inconsistent() -> None:
+    # x = (0, 5), u = 1: y = 2.5, χ² = 12.5 > 3.841459 (ν = 1)
+    d = weighted_mean([0.0, 5.0], [1.0, 1.0], g0(2)).diagnostics
+    assert d["chi2_obs"][0] == 12.5 and not d["consistent"][0]
+    assert d["birge_ratio"][0] == pytest.approx(math.sqrt(12.5))
+
+
+def test_weighted_mean_single_result_is_documented() -> None:
+    a = weighted_mean([418.0], [2.0], g0(1))
+    d = a.diagnostics
+    assert a.value[0] == 418.0 and a.standard_uncertainty[0] == 2.0
+    assert (d["n"][0], d["dof"][0], d["chi2_obs"][0], d["chi2_crit"][0]) == (1, 0, 0.0, 0.0)
+    assert d["consistent"][0] and d["birge_ratio"][0] == 0.0 and d["p_value"][0] == 1.0
+
+
+@given(st.floats(min_value=-1e6, max_value=1e6, allow_nan=False), values)
+def test_weighted_mean_of_identical_values_is_that_value(v: float, data: list) -> None:
+    u = [t[1] for t in data]
+    a = weighted_mean([v] * len(u), u, g0(len(u)))
+    assert a.value[0] == v
+    assert a.diagnostics["chi2_obs"][0] == 0.0 and a.diagnostics["consistent"][0]
+
+
+@settings(deadline=None)
+@given(values, st.floats(min_value=0.01, max_value=100.0, allow_nan=False))
+def test_adding_the_weighted_mean_keeps_a_consistent_set_consistent(
+    data: list, u_new: float
+) -> None:
+    x, u = [t[0] for t in data], [t[1] for t in data]
+    a = weighted_mean(x, u, g0(len(x)))
+    if not a.diagnostics["consistent"][0]:
+        return
+    b = weighted_mean([*x, float(a.value[0])], [*u, u_new], g0(len(x) + 1))
+    assert b.diagnostics["consistent"][0]
+    assert b.value[0] == pytest.approx(a.value[0], rel=1e-12, abs=1e-12)
+
+
+# --- largest consistent subset --------------------------------------------------------
+
+
+def test_lcs_tie_broken_by_smallest_chi2() -> None:
+    # x = (0, 2.5, 5.2), u = 1: full χ² = 13.5 > 5.99.  Pairs: χ² = Δ²/2:
+    # {0, 2.5} 3.125 ✓, {2.5, 5.2} 3.645 ✓, {0, 5.2} 13.52 ✗ → keep {0, 2.5}
+    a = largest_consistent_subset([0.0, 2.5, 5.2], [1.0] * 3, g0(3))
+    np.testing.assert_array_equal(a.included, [True, True, False])
+    assert a.value[0] == pytest.approx(1.25)
+    assert a.diagnostics["chi2_obs"][0] == pytest.approx(3.125)
+    assert a.diagnostics["n_excluded"][0] == 1 and not a.diagnostics["consistent_all"][0]
+
+
+def test_lcs_exhaustive_beats_sequential() -> None:
+    # x = (3.7, 4.0, −2.1, 0.7, −1.3), u = 1; full set: y = 1, χ² = 31.28 > 9.49.
+    # Exhaustive: {−2.1, 0.7, −1.3}: y = −0.9, χ² = 1.44 + 2.56 + 0.16 = 4.16 ≤ 5.99 (3 kept).
+    # Sequential drops −2.1, −1.3, 0.7 in turn and ends with {3.7, 4.0} (2 kept).
+    x = [3.7, 4.0, -2.1, 0.7, -1.3]
+    a = largest_consistent_subset(x, [1.0] * 5, g0(5))
+    np.testing.assert_array_equal(a.included, [False, False, True, True, True])
+    assert a.value[0] == pytest.approx(-0.9)
+    assert a.diagnostics["chi2_obs"][0] == pytest.approx(4.16)
+    assert a.diagnostics["exhaustive"][0]
+    b = largest_consistent_subset(x, [1.0] * 5, g0(5), exhaustive_max=4)
+    np.testing.assert_array_equal(b.included, [True, True, False, False, False])
+    assert not b.diagnostics["exhaustive"][0] and b.diagnostics["consistent"][0]
+
+
+@settings(max_examples=150, deadline=None)
+@given(values)
+def test_lcs_matches_brute_force(data: list) -> None:
+    x, u = [t[0] for t in data], [t[1] for t in data]
+    a = largest_consistent_subset(x, u, g0(len(x)))
+    expected = brute_force_lcs(x, u)
+    assert int(a.included.sum()) == len(expected)
+    assert a.diagnostics["consistent"][0]
+    # same subset unless two subsets tie in χ² to rounding
+    w = np.array([1 / ui**2 for ui in u])
+    xs = np.array(x)
+    m = np.zeros(len(x), bool)
+    m[list(expected)] = True
+    y = np.sum(w[m] * xs[m]) / np.sum(w[m])
+    assert a.diagnostics["chi2_obs"][0] == pytest.approx(np.sum(w[m] * (xs[m] - y) ** 2), abs=1e-9)
+
+
+def test_lcs_consistent_set_unchanged_and_single_result() -> None:
+    a = largest_consistent_subset([10.0, 11.0, 12.0], [1.0, 1.0, 2.0], g0(3))
+    b = weighted_mean([10.0, 11.0, 12.0], [1.0, 1.0, 2.0], g0(3))
+    assert a.included.all() and a.value[0] == b.value[0]
+    assert a.diagnostics["n_excluded"][0] == 0
+    one = largest_consistent_subset([5.0], [1.0], g0(1))
+    assert one.value[0] == 5.0 and one.included.all()
+
+
+def test_lcs_large_group_uses_sequential_and_ends_consistent() -> None:
+    rng = np.random.default_rng(3)
+    x = np.concatenate([rng.normal(0, 1, 30), [8.0, -9.0, 12.0]])
+    a = largest_consistent_subset(x, np.ones(x.size), g0(x.size))
+    assert not a.diagnostics["exhaustive"][0]
+    assert a.diagnostics["consistent"][0]
+    assert not a.included[-3:].any()
+
+
+# --- DerSimonian–Laird ----------------------------------------------------------------
+
+
+def test_dersimonian_laird_by_hand() -> None:
+    # x = (0, 2), u = 1: w = 1, y = 1, Q = 2, N − 1 = 1, S1 = 2, S2 = 2
+    # τ² = (2 − 1)/(2 − 2/2) = 1 ; w* = 1/2 each ; μ = 1 ; u(μ) = (1/2 + 1/2)^(−1/2) = 1
+    a = dersimonian_laird([0.0, 2.0], [1.0, 1.0], g0(2))
+    assert a.value[0] == 1.0
+    assert a.standard_uncertainty[0] == pytest.approx(1.0, rel=1e-15)
+    assert a.diagnostics["tau"][0] == pytest.approx(1.0, rel=1e-15)
+    assert a.diagnostics["q"][0] == 2.0
+
+
+def dl_reference(x: list[float], u: list[float]) -> tuple[float, float, float]:
+    """Plain-Python DerSimonian–Laird (1986) for comparison."""
+    w = [1 / v**2 for v in u]
+    yw = sum(a * b for a, b in zip(w, x, strict=True)) / sum(w)
+    q = sum(a * (b - yw) ** 2 for a, b in zip(w, x, strict=True))
+    s1, s2 = sum(w), sum(a * a for a in w)
+    tau2 = max(0.0, (q - (len(x) - 1)) / (s1 - s2 / s1)) if len(x) > 1 else 0.0
+    ws = [1 / (v**2 + tau2) for v in u]
+    return sum(a * b for a, b in zip(ws, x, strict=True)) / sum(ws), sum(ws) ** -0.5, tau2**0.5
+
+
+@given(values)
+def test_dersimonian_laird_matches_reference(data: list) -> None:
+    x, u = [t[0] for t in data], [t[1] for t in data]
+    a = dersimonian_laird(x, u, g0(len(x)))
+    mu, u_mu, tau = dl_reference(x, u)
+    assert a.value[0] == pytest.approx(mu, rel=1e-10, abs=1e-10)
+    assert a.standard_uncertainty[0] == pytest.approx(u_mu, rel=1e-10)
+    assert a.diagnostics["tau"][0] == pytest.approx(tau, rel=1e-7, abs=1e-7)
+
+
+@given(values)
+def test_dersimonian_laird_without_excess_scatter_is_the_weighted_mean(data: list) -> None:
+    x, u = [t[0] for t in data], [t[1] for t in data]
+    a = dersimonian_laird(x, u, g0(len(x)))
+    if a.diagnostics["q"][0] > len(x) - 1:
+        return
+    b = weighted_mean(x, u, g0(len(x)))
+    assert a.diagnostics["tau"][0] == 0.0
+    assert a.value[0] == b.value[0] and a.standard_uncertainty[0] == b.standard_uncertainty[0]
+
+
+# --- σ_pt -----------------------------------------------------------------------------
+
+
+def test_sigma_pt_prescribed_and_given() -> None:
+    np.testing.assert_array_equal(sigma_pt_prescribed(5.0, 2), [5.0, 5.0])
+    # 1 % of 418 = 4.18 ; 0.5 % of 200 = 1
+    np.testing.assert_allclose(
+        sigma_pt_prescribed([1.0, 0.5], 2, x_pt=[418.0, -200.0], relative=True), [4.18, 1.0]
+    )
+    np.testing.assert_array_equal(sigma_pt_given([1.0, 2.0], 2), [1.0, 2.0])
+    with pytest.raises(CoreInputError, match="needs x_pt"):
+        sigma_pt_prescribed(1.0, 2, relative=True)
+    with pytest.raises(CoreInputError, match=r"sigma_pt\[1\]"):
+        sigma_pt_given([1.0, 0.0], 2)
+
+
+# --- vectorisation and bad input ------------------------------------------------------
+
+
+def _fields_equal(a: AssignedValues, b: AssignedValues, g: int, mask: np.ndarray) -> None:
+    assert a.value[g] == b.value[0]
+    assert a.standard_uncertainty[g] == b.standard_uncertainty[0]
+    np.testing.assert_array_equal(a.included[mask], b.included)
+    for key, arr in a.diagnostics.items():
+        assert arr[g] == b.diagnostics[key][0], key
+
+
+@pytest.mark.parametrize("method", [weighted_mean, largest_consistent_subset, dersimonian_laird])
+def test_many_groups_at_once_equals_one_at_a_time(method: object) -> None:
+    rng = np.random.default_rng(11)
+    n_groups = 25
+    index = np.repeat(np.arange(n_groups), rng.integers(1, 9, n_groups))
+    rng.shuffle(index)
+    x = rng.normal(418, 2, index.size) + rng.normal(0, 6, index.size) * (
+        rng.random(index.size) < 0.2
+    )
+    u = rng.uniform(0.5, 2.0, index.size)
+    together = method(x, u, Groups.from_index(index))  # type: ignore[operator]
+    for g in range(n_groups):
+        m = index == g
+        _fields_equal(together, method(x[m], u[m], g0(int(m.sum()))), g, m)  # type: ignore[operator]
+    if method is largest_consistent_subset:
+        assert together.diagnostics["n_excluded"].sum() > 0  # the search was exercised
+
+
+@pytest.mark.parametrize("method", [weighted_mean, largest_consistent_subset, dersimonian_laird])
+def test_bad_input(method: object) -> None:
+    with pytest.raises(CoreInputError, match=r"x\[1\]"):
+        method([1.0, np.nan], [1.0, 1.0], g0(2))  # type: ignore[operator]
+    with pytest.raises(CoreInputError, match=r"u\[0\]"):
+        method([1.0, 2.0], [0.0, 1.0], g0(2))  # type: ignore[operator]
+    with pytest.raises(CoreInputError, match=r"u\[1\]"):
+        method([1.0, 2.0], [1.0, np.inf], g0(2))  # type: ignore[operator]
+    with pytest.raises(CoreInputError, match=r"group\(s\) \[1\] have no results"):
+        method([1.0, 2.0], [1.0, 1.0], Groups.from_index([0, 2]))  # type: ignore[operator]
+    with pytest.raises(CoreInputError, match="one entry per result"):
+        method([1.0, 2.0], [1.0], g0(2))  # type: ignore[operator]
+
+
+def test_bad_alpha() -> None:
+    with pytest.raises(CoreInputError, match="alpha"):
+        weighted_mean([1.0], [1.0], g0(1), alpha=0.0)
+    with pytest.raises(CoreInputError, match="alpha"):
+        largest_consistent_subset([1.0], [1.0], g0(1), alpha=1.0)
+
+
+def test_all_labs_identical() -> None:
+    x, u = [418.0] * 4, [1.0, 2.0, 0.5, 3.0]
+    for method in (weighted_mean, largest_consistent_subset, dersimonian_laird):
+        a = method(x, u, g0(4))
+        assert a.value[0] == 418.0 and a.included.all()
+    assert dersimonian_laird(x, u, g0(4)).diagnostics["tau"][0] == 0.0
