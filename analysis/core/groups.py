@@ -62,8 +62,10 @@ class Groups:
             u, inv = np.unique(col, return_inverse=True)
             uniques.append(u)
             codes.append(inv.reshape(-1))
-        combined = np.ravel_multi_index(codes, [len(u) for u in uniques]) if codes[0].size else (
-            np.zeros(0, dtype=np.intp)
+        combined = (
+            np.ravel_multi_index(codes, [len(u) for u in uniques])
+            if codes[0].size
+            else (np.zeros(0, dtype=np.intp))
         )
         present, index = np.unique(combined, return_inverse=True)
         parts = np.unravel_index(present, [len(u) for u in uniques])

@@ -78,8 +78,11 @@ def flag_z(score: ArrayLike) -> FlagArray:
     """ISO 13528:2022 9.4.2 for z, z′, ζ: |s| ≤ 2 satisfactory, 2 < |s| < 3 warning,
     |s| ≥ 3 action; NaN → not scored."""
     a = np.abs(np.asarray(score, dtype=np.float64))
-    out = np.where(a <= 2.0, FLAG_SATISFACTORY, np.where(a < 3.0, FLAG_WARNING, FLAG_ACTION))
-    return np.where(np.isnan(a), FLAG_NOT_SCORED, out).astype(np.int8)
+    out = (a > 2.0).view(np.int8) + (a >= 3.0).view(np.int8)  # 0, 1 or 2 without branches
+    nan = np.isnan(a)
+    if nan.any():
+        out[nan] = FLAG_NOT_SCORED
+    return out
 
 
 def flag_en(score: ArrayLike, limit: float = 1.0) -> FlagArray:
@@ -89,7 +92,7 @@ def flag_en(score: ArrayLike, limit: float = 1.0) -> FlagArray:
     calibration convention |En| ≤ 1 = compatible.)
     """
     a = np.abs(np.asarray(score, dtype=np.float64))
-    return np.where(a <= limit, FLAG_SATISFACTORY, FLAG_ACTION).astype(np.int8)
+    return (~(a <= limit)).view(np.int8) * np.int8(FLAG_ACTION)
 
 
 def _group_array(name: str, values: ArrayLike, n: int) -> FloatArray:
@@ -150,12 +153,16 @@ def _uncertainty_of_d(
     the uncorrected sum is used and the result is reported in
     ``correlation_failed`` rather than raising, so a whole round is still scored.
     """
+    u_d = np.sqrt(u * u + u_pt * u_pt)  # hypot is ~5x slower and overflow is not a risk here
+    big_d = np.sqrt(big_u * big_u + big_u_pt * big_u_pt)
+    if not corr.any():  # the common case (independent x_pt): no second pass
+        return u_d, big_d, corr, corr.copy()
     u2_minus = u**2 - u_pt**2
     big2_minus = big_u**2 - big_u_pt**2
     failed = corr & ((u2_minus <= _CORRELATION_RTOL * u**2) | (big2_minus <= 0))
     applied = corr & ~failed
-    u_d = np.sqrt(np.where(applied, u2_minus, u**2 + u_pt**2))
-    big_d = np.sqrt(np.where(applied, big2_minus, big_u**2 + big_u_pt**2))
+    u_d[applied] = np.sqrt(u2_minus[applied])
+    big_d[applied] = np.sqrt(big2_minus[applied])
     return u_d, big_d, applied, failed
 
 
@@ -206,21 +213,23 @@ def compute_scores(
     use_zp = np.isfinite(sigma) & (up > NEGLIGIBLE_FRACTION * sigma)
     performance = np.where(use_zp[idx], z_prime, z)
     d_flag = np.where(np.abs(d) < de[idx], FLAG_SATISFACTORY, FLAG_ACTION)
+    zeta = d / u_d
+    en = d / big_d
     return Scores(
         d=d,
         d_percent=100.0 * d / xp[idx],
         z=z,
         z_prime=z_prime,
-        zeta=d / u_d,
-        en=d / big_d,
+        zeta=zeta,
+        en=en,
         u_d=u_d,
         U_d=big_d,
         performance=performance,
         d_flag=np.where(np.isnan(de[idx]), FLAG_NOT_SCORED, d_flag).astype(np.int8),
         z_flag=flag_z(z),
         z_prime_flag=flag_z(z_prime),
-        zeta_flag=flag_z(d / u_d),
-        en_flag=flag_en(d / big_d, en_limit),
+        zeta_flag=flag_z(zeta),
+        en_flag=flag_en(en, en_limit),
         performance_flag=flag_z(performance),
         use_z_prime=use_zp,
         correlation_applied=applied,

@@ -1,0 +1,416 @@
+"""Robust estimators of location and scale, ISO 13528:2022 Annex C.
+
+Every statistic works on many groups (measurement points) at once.  The results of
+each group are sorted once (one ``np.sort`` of the padded 2-D view); medians and
+quartiles are then read by index, and the fixed-point iterations (Algorithm A,
+Algorithm S) only need per-group counts and partial sums found by a vectorised
+binary search on the sorted rows, so an iteration costs O(groups * log n), not O(n).
+
+Partial sums never subtract a large prefix from another: Algorithm A runs on the
+results centred on the median and scaled by the largest deviation, and the
+positive and negative parts are accumulated outwards from the median, so results
+far outside the clipping limits never enter the sums that are used (no
+cancellation from outliers).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy import stats
+
+from analysis.core.groups import (
+    BoolArray,
+    CoreInputError,
+    FloatArray,
+    Groups,
+    IntArray,
+    as_finite,
+)
+from analysis.core.types import AssignedValues
+
+MADE_FACTOR = 1.483  # ISO 13528:2022 C.2.2
+NIQR_FACTOR = 0.7413  # ISO 13528:2022 C.2.3
+ALG_A_FACTOR = 1.134  # ISO 13528:2022 C.3.1, Formula (C.10)
+ALG_A_DELTA = 1.5  # ISO 13528:2022 C.3.1, Formula (C.7)
+U_FACTOR = 1.25  # ISO 13528:2022 7.7.3, u(x_pt) = 1.25 s*/sqrt(p)
+_EPS = 8 * np.finfo(np.float64).eps  # floor of the relative stopping rule (rounding noise)
+_COLLAPSE = 1e-9  # s* below this fraction of its start value is reported as 0
+
+
+@dataclass(frozen=True)
+class PooledDeviation:
+    """Result of Algorithm S (ISO 13528:2022 C.4), one entry per group.
+
+    ``value`` is the robust pooled standard deviation (or range) w*; ``eta`` and
+    ``xi`` are the limit and adjustment factors used (Table C.1, from chi-square).
+    """
+
+    value: FloatArray
+    iterations: IntArray
+    converged: BoolArray
+    degenerate: BoolArray
+    n: IntArray
+    eta: FloatArray
+    xi: FloatArray
+
+
+@dataclass(frozen=True)
+class _Sorted:
+    """Results of every group sorted in a (n_groups, max_n) array, NaN after the n-th."""
+
+    rows: FloatArray
+    n: IntArray
+
+    @property
+    def index(self) -> IntArray:
+        return np.arange(self.n.size)
+
+
+def _sorted_groups(name: str, x: ArrayLike, groups: Groups) -> _Sorted:
+    arr = as_finite(name, x)
+    if arr.size != groups.size:
+        raise CoreInputError(f"{name} has {arr.size} values but the groups cover {groups.size}")
+    n = groups.counts()
+    empty = np.flatnonzero(n == 0)
+    if empty.size:
+        raise CoreInputError(f"group(s) {empty[:10].tolist()} have no results")
+    return _Sorted(np.sort(groups.padded(arr), axis=1), n)
+
+
+def _row_median(s: _Sorted) -> FloatArray:
+    """Median of each sorted row (mean of the two middle values when n is even)."""
+    r = s.index
+    return (s.rows[r, (s.n - 1) // 2] + s.rows[r, s.n // 2]) / 2
+
+
+def _row_quantile(s: _Sorted, q: float) -> FloatArray:
+    """Quantile by linear interpolation between order statistics (Hyndman-Fan type 7,
+    numpy's and R's default), the definition pt13528 uses for Table E.5."""
+    h = (s.n - 1) * q
+    j = np.floor(h).astype(np.intp)
+    t = h - j
+    a = s.rows[s.index, j]
+    b = s.rows[s.index, np.minimum(j + 1, s.n - 1)]
+    diff = b - a
+    return np.where(t >= 0.5, b - diff * (1 - t), a + diff * t)
+
+
+def _count_below(
+    rows: FloatArray, sel: IntArray, n: IntArray, v: FloatArray, *, inclusive: bool
+) -> IntArray:
+    """Per selected row, how many of its first n sorted values are < v (<= v if inclusive).
+
+    A binary search run on all rows together: one step per bit of the row width."""
+    lo = np.zeros(sel.size, dtype=np.intp)
+    hi = n.astype(np.intp).copy()
+    last = rows.shape[1] - 1
+    for _ in range(int(rows.shape[1]).bit_length() + 1):
+        open_ = lo < hi
+        mid = (lo + hi) // 2
+        val = rows[sel, np.minimum(mid, last)]
+        right = open_ & ((val <= v) if inclusive else (val < v))
+        lo = np.where(right, mid + 1, lo)
+        hi = np.where(open_ & ~right, mid, hi)
+    return lo
+
+
+def _more_than_half_identical(s: _Sorted, value: FloatArray) -> BoolArray:
+    """True where more than half of a group's results equal ``value`` (its median)."""
+    sel = s.index
+    equal = _count_below(s.rows, sel, s.n, value, inclusive=True) - _count_below(
+        s.rows, sel, s.n, value, inclusive=False
+    )
+    return 2 * equal > s.n
+
+
+def _made(s: _Sorted, med: FloatArray) -> FloatArray:
+    """MADe = 1.483 median|x_i - median(x)|, ISO 13528:2022 C.2.2."""
+    dev = _Sorted(np.sort(np.abs(s.rows - med[:, None]), axis=1), s.n)
+    return MADE_FACTOR * _row_median(dev)
+
+
+def _assigned(
+    s: _Sorted, med: FloatArray, s_star: FloatArray, method: str, groups: Groups, **diag: np.ndarray
+) -> AssignedValues:
+    return AssignedValues(
+        value=med,
+        standard_uncertainty=U_FACTOR * s_star / np.sqrt(s.n),
+        method=method,
+        included=np.ones(groups.size, dtype=bool),
+        diagnostics={"s_star": s_star, "n": s.n.copy(), **diag},
+    )
+
+
+def median_made(x: ArrayLike, groups: Groups) -> AssignedValues:
+    """x* = median, s* = MADe (ISO 13528:2022 C.2.1, C.2.2); u(x_pt) = 1.25 s*/sqrt(p) (7.7.3).
+
+    ``degenerate`` is True where s* = 0, i.e. more than half of the results are identical."""
+    s = _sorted_groups("x", x, groups)
+    med = _row_median(s)
+    s_star = _made(s, med)
+    degenerate = (s_star == 0) | _more_than_half_identical(s, med)
+    return _assigned(s, med, s_star, "median_made", groups, degenerate=degenerate)
+
+
+def median_niqr(x: ArrayLike, groups: Groups) -> AssignedValues:
+    """x* = median, s* = nIQR = 0.7413 (Q3 - Q1) (ISO 13528:2022 C.2.1, C.2.3).
+
+    Quartiles by linear interpolation between order statistics (Hyndman-Fan type 7,
+    ``numpy.quantile`` default), as pt13528 does: it reproduces Table E.5 (the NOTE
+    under that table warns that packages differ).  ``degenerate``: s* = 0 or more
+    than half of the results identical."""
+    s = _sorted_groups("x", x, groups)
+    med = _row_median(s)
+    s_star = NIQR_FACTOR * (_row_quantile(s, 0.75) - _row_quantile(s, 0.25))
+    degenerate = (s_star == 0) | _more_than_half_identical(s, med)
+    return _assigned(s, med, s_star, "median_niqr", groups, degenerate=degenerate)
+
+
+@dataclass
+class _Prefix:
+    """Outward partial sums of a sorted, median-centred row: ``pos[j]`` sums the positive
+    values before j, ``neg[j]`` the negative values from j on (and the same for squares)."""
+
+    pos: FloatArray
+    neg: FloatArray
+    pos2: FloatArray
+    neg2: FloatArray
+
+    @classmethod
+    def build(cls, a: FloatArray) -> _Prefix:
+        p = np.where(a > 0, a, 0.0)
+        m = np.where(a < 0, a, 0.0)
+        return cls(_cum(p), _cum(m[:, ::-1])[:, ::-1], _cum(p * p), _cum((m * m)[:, ::-1])[:, ::-1])
+
+    def window(self, sel: IntArray, i: IntArray, j: IntArray) -> tuple[FloatArray, FloatArray]:
+        """Sum and sum of squares of the values at positions i..j-1 of the selected rows."""
+        s1 = (self.pos[sel, j] - self.pos[sel, i]) + (self.neg[sel, i] - self.neg[sel, j])
+        s2 = (self.pos2[sel, j] - self.pos2[sel, i]) + (self.neg2[sel, i] - self.neg2[sel, j])
+        return s1, s2
+
+
+def _cum(v: FloatArray) -> FloatArray:
+    out = np.zeros((v.shape[0], v.shape[1] + 1))
+    np.cumsum(v, axis=1, out=out[:, 1:])
+    return out
+
+
+@dataclass
+class _AState:
+    """Per-group state of Algorithm A, in units centred on the median and scaled."""
+
+    x: FloatArray
+    s: FloatArray
+    s0: FloatArray
+    active: BoolArray
+    iterations: IntArray
+    converged: BoolArray
+    collapsed: BoolArray
+    ratio: FloatArray
+
+
+def _a_step(
+    a: _Sorted, pre: _Prefix, sel: IntArray, x: FloatArray, s: FloatArray
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """One update of Formulae (C.7) to (C.10) for the selected groups; also says whether
+    every result inside the limits is identical (the collapse pattern)."""
+    n = a.n[sel]
+    lo, hi = x - ALG_A_DELTA * s, x + ALG_A_DELTA * s
+    i = _count_below(a.rows, sel, n, lo, inclusive=False)
+    j = _count_below(a.rows, sel, n, hi, inclusive=True)
+    k_lo, k_in, k_hi = i, j - i, n - j
+    s1, s2 = pre.window(sel, i, j)
+    mean = (k_lo * lo + s1 + k_hi * hi) / n
+    ss = k_lo * (lo - mean) ** 2 + k_hi * (hi - mean) ** 2 + (s2 - 2 * mean * s1 + k_in * mean**2)
+    new_s = ALG_A_FACTOR * np.sqrt(np.maximum(ss, 0.0) / (n - 1))
+    first = a.rows[sel, np.minimum(i, n - 1)]
+    last = a.rows[sel, np.maximum(j - 1, 0)]
+    return mean, new_s, (k_in > 0) & (first == last)
+
+
+def _a_update(
+    st: _AState,
+    sel: IntArray,
+    new_x: FloatArray,
+    new_s: FloatArray,
+    flat: BoolArray,
+    it: int,
+    rtol: float,
+) -> None:
+    """Stopping rule and collapse detection (after pt13528's), then commit the update."""
+    x, s = st.x[sel], st.s[sel]
+    shrink = flat & (new_s < s)
+    r = np.where(shrink, new_s / np.where(s > 0, s, 1.0), np.nan)
+    collapse = (new_s < _COLLAPSE * st.s0[sel]) | (shrink & (np.abs(r - st.ratio[sel]) <= 1e-12))
+    limit = np.maximum(rtol * new_s, _EPS * np.abs(new_x))
+    done = (np.abs(new_x - x) < limit) & (np.abs(new_s - s) < limit)
+    st.ratio[sel] = r
+    st.x[sel] = np.where(collapse, 0.0, new_x)
+    st.s[sel] = np.where(collapse, 0.0, new_s)
+    stop = collapse | done
+    st.collapsed[sel] = collapse
+    st.converged[sel] = stop
+    st.iterations[sel] = it
+    st.active[sel] = ~stop
+
+
+def _a_start(a: _Sorted) -> tuple[FloatArray, BoolArray]:
+    """Starting s* = MADe of the scaled results; where MADe = 0 (more than half of the
+    results identical) C.3.1 NOTE 2 falls back to the standard deviation."""
+    made = _made(a, _row_median(a))
+    s = made.copy()
+    zero = np.flatnonzero((made == 0) & (a.n > 1))
+    if zero.size:
+        s[zero] = np.nanstd(a.rows[zero], axis=1, ddof=1)
+    return s, made == 0
+
+
+def algorithm_a(
+    x: ArrayLike, groups: Groups, *, rtol: float = 1e-10, max_iter: int = 500
+) -> AssignedValues:
+    """Robust mean and standard deviation by Algorithm A, ISO 13528:2022 C.3.1, per group.
+
+    Start x* = median, s* = MADe; iterate delta = 1.5 s*, clip to [x* - delta, x* + delta],
+    x* = mean, s* = 1.134 sd(ddof=1) of the clipped results (Formulae C.5 to C.10), all
+    groups together.  Stopping rule: both |change of x*| and |change of s*| below
+    ``rtol * s*`` (floored at rounding level).  This is stricter than the standard's "no
+    change in the third significant figure" and, unlike it, independent of unit and
+    origin; it is pt13528's default.  u(x_pt) = 1.25 s*/sqrt(p) (7.7.3).
+
+    Degenerate cases (``degenerate`` True):
+    * MADe = 0 (more than half of the results identical): s* starts from the standard
+      deviation (C.3.1 NOTE 2); if the iteration then collapses (s* -> 0, detected as in
+      pt13528), x* = median and s* = 0 are returned.
+    * all results identical, or a group of one result: x* = median, s* = 0, 0 iterations.
+    A group of two results gives x* = mean and s* = 1.134 |x1 - x2| / sqrt(2) (no
+    clipping happens).  Diagnostics: ``s_star``, ``iterations``, ``converged``,
+    ``degenerate``, ``n``; a group that hits ``max_iter`` has ``converged`` False.
+    """
+    if not (rtol > 0 and max_iter >= 1):
+        raise CoreInputError("rtol must be > 0 and max_iter >= 1")
+    s = _sorted_groups("x", x, groups)
+    med = _row_median(s)
+    rows = s.rows - med[:, None]
+    m = np.fmax(np.abs(rows[s.index, 0]), np.abs(rows[s.index, s.n - 1]))
+    unit = np.where(m > 0, m, 1.0)
+    a = _Sorted(rows / unit[:, None], s.n)
+    s0, made_zero = _a_start(a)
+    g = s.n.size
+    st = _AState(
+        np.zeros(g),
+        s0.copy(),
+        s0,
+        (s0 > 0) & (s.n > 1),
+        np.zeros(g, np.intp),
+        ~((s0 > 0) & (s.n > 1)),
+        np.zeros(g, bool),
+        np.full(g, np.nan),
+    )
+    pre = _Prefix.build(a.rows)
+    for it in range(1, max_iter + 1):
+        sel = np.flatnonzero(st.active)
+        if not sel.size:
+            break
+        new_x, new_s, flat = _a_step(a, pre, sel, st.x[sel], st.s[sel])
+        _a_update(st, sel, new_x, new_s, flat, it, rtol)
+    st.iterations[st.active] = max_iter
+    s_star = unit * st.s
+    degenerate = made_zero | (s_star == 0)
+    return _assigned(
+        s,
+        med + unit * st.x,
+        s_star,
+        "algorithm_a",
+        groups,
+        degenerate=degenerate,
+        iterations=st.iterations,
+        converged=st.converged.copy(),
+    )
+
+
+def sigma_pt_robust(
+    x: ArrayLike, groups: Groups, *, rtol: float = 1e-10, max_iter: int = 500
+) -> FloatArray:
+    """sigma_pt = robust standard deviation s* of Algorithm A per group (ISO 13528:2022
+    8.7 with C.3).  Raises CoreInputError for groups where s* = 0 (degenerate data):
+    no z score can be formed there; prescribe sigma_pt for those measurement points."""
+    av = algorithm_a(x, groups, rtol=rtol, max_iter=max_iter)
+    s_star = av.diagnostics["s_star"]
+    bad = np.flatnonzero(s_star == 0)
+    if bad.size:
+        raise CoreInputError(
+            f"robust s* is 0 for group(s) {bad[:10].tolist()} (more than half of the results "
+            "identical or a single result): prescribe sigma_pt for these measurement points"
+        )
+    return np.asarray(s_star, dtype=np.float64)
+
+
+def algorithm_s_factors(degrees_of_freedom: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Limit factor eta and adjustment factor xi of Algorithm S (ISO 13528:2022 Table C.1).
+
+    With w^2 ~ sigma^2 chi2_nu / nu: eta = sqrt(chi2_{0.90; nu} / nu) and
+    xi = 1 / sqrt(F_{nu+2}(nu eta^2) + eta^2 (1 - F_nu(nu eta^2))), F_k the chi-square
+    cdf, so that the winsorised mean square is unbiased at the normal model.
+    """
+    nu = np.asarray(degrees_of_freedom, dtype=np.float64)
+    if not (np.all(np.isfinite(nu)) and np.all(nu >= 1) and np.all(nu == np.round(nu))):
+        raise CoreInputError("degrees of freedom must be integers >= 1")
+    c = stats.chi2.ppf(0.90, nu)
+    eta = np.sqrt(c / nu)
+    xi = 1.0 / np.sqrt(stats.chi2.cdf(c, nu + 2) + eta**2 * stats.chi2.sf(c, nu))
+    return np.asarray(eta, dtype=np.float64), np.asarray(xi, dtype=np.float64)
+
+
+def algorithm_s(
+    w: ArrayLike,
+    groups: Groups,
+    degrees_of_freedom: ArrayLike,
+    *,
+    rtol: float = 1e-10,
+    max_iter: int = 500,
+) -> PooledDeviation:
+    """Robust pooled standard deviation or range, Algorithm S, ISO 13528:2022 C.4.
+
+    ``w`` holds one standard deviation (nu = m - 1) or range of duplicates (nu = 1) per
+    participant; ``degrees_of_freedom`` is one integer, or one per group.  Start w* =
+    median(w) (root mean square where the median is 0, C.4 NOTE); iterate psi = eta w*,
+    w* = xi sqrt(mean(min(w_i, psi)^2)) until |change| < rtol * w*.  A majority of zeros
+    drives w* to 0: reported as w* = 0 with ``degenerate`` True (as pt13528)."""
+    s = _sorted_groups("w", w, groups)
+    if np.any(s.rows[:, 0] < 0):
+        raise CoreInputError("standard deviations and ranges cannot be negative")
+    eta, xi = (np.broadcast_to(f, s.n.shape) for f in algorithm_s_factors(degrees_of_freedom))
+    top = s.rows[s.index, s.n - 1]
+    unit = np.where(top > 0, top, 1.0)
+    a = _Sorted(s.rows / unit[:, None], s.n)
+    c2 = _cum(np.nan_to_num(a.rows * a.rows))
+    w0 = _row_median(a)
+    w0 = np.where(w0 > 0, w0, np.sqrt(c2[a.index, a.n] / a.n))
+    w_star, its = w0.copy(), np.zeros(a.n.size, np.intp)
+    active, degenerate = top > 0, top == 0
+    for it in range(1, max_iter + 1):
+        sel = np.flatnonzero(active)
+        if not sel.size:
+            break
+        psi = eta[sel] * w_star[sel]
+        k = _count_below(a.rows, sel, a.n[sel], psi, inclusive=True)
+        new = xi[sel] * np.sqrt((c2[sel, k] + (a.n[sel] - k) * psi**2) / a.n[sel])
+        zeros_only = (k == 0) | (a.rows[sel, np.maximum(k - 1, 0)] == 0)
+        collapse = (new < _COLLAPSE * w0[sel]) | ((new < w_star[sel]) & zeros_only)
+        done = np.abs(new - w_star[sel]) < np.maximum(rtol, _EPS) * new
+        w_star[sel] = np.where(collapse, 0.0, new)
+        degenerate[sel] |= collapse
+        its[sel] = it
+        active[sel] = ~(collapse | done)
+    return PooledDeviation(
+        unit * np.where(top > 0, w_star, 0.0),
+        its,
+        ~active,
+        degenerate,
+        s.n.copy(),
+        np.array(eta),
+        np.array(xi),
+    )
