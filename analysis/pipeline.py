@@ -1,0 +1,366 @@
+"""One analysis of a results table: assigned values, scores, compatibility matrices.
+
+Plain Python over ``analysis.core`` (no ORM): used by the offline command
+``pt_compare`` (formats.md §4) and by the analysis runs of the service, so both
+compute the same numbers.  All measurement points go through the core in one
+call each; nothing here loops over results.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from analysis.core import assigned as av
+from analysis.core import robust
+from analysis.core.compatibility import CompatibilityMatrix, compatibility_matrices
+from analysis.core.groups import CoreInputError, FloatArray, Groups
+from analysis.core.scores import FLAG_LABELS, Scores, compute_scores
+from analysis.core.types import AssignedValues
+from labs.importers import ResultRow
+
+POINT_KEYS = ("device", "axis", "frequency_hz", "bench", "direction")
+METHODS = ("reference", "nominal", "weighted_mean", "algorithm_a", "median", "dersimonian_laird")
+FACTORS = ("lab", "axis", "frequency", "device", "bench", "direction")
+
+
+@dataclass(frozen=True)
+class ResultTable:
+    """Columnar results: one entry per result in every array."""
+
+    lab: np.ndarray
+    device: np.ndarray
+    axis: np.ndarray
+    frequency_hz: FloatArray
+    bench: np.ndarray
+    direction: np.ndarray
+    value: FloatArray
+    expanded_uncertainty: FloatArray
+    coverage_factor: FloatArray
+
+    @classmethod
+    def from_rows(cls, rows: Sequence[ResultRow]) -> ResultTable:
+        def col(name: str, dtype: Any = np.str_) -> np.ndarray:
+            return np.array([getattr(r, name) for r in rows], dtype=dtype)
+
+        return cls(
+            lab=col("lab"),
+            device=col("device"),
+            axis=col("axis"),
+            frequency_hz=col("frequency_hz", np.float64),
+            bench=col("bench"),
+            direction=col("direction"),
+            value=col("sensitivity", np.float64),
+            expanded_uncertainty=col("expanded_uncertainty", np.float64),
+            coverage_factor=col("coverage_factor", np.float64),
+        )
+
+    @property
+    def standard_uncertainty(self) -> FloatArray:
+        return self.expanded_uncertainty / self.coverage_factor
+
+    def columns(self) -> dict[str, np.ndarray]:
+        return {
+            "lab": self.lab,
+            "device": self.device,
+            "axis": self.axis,
+            "frequency_hz": self.frequency_hz,
+            "bench": self.bench,
+            "direction": self.direction,
+            "value": self.value,
+            "standard_uncertainty": self.standard_uncertainty,
+        }
+
+
+@dataclass(frozen=True)
+class AssignedSpec:
+    """How x_pt is obtained (domain.md §5); ``parse`` reads the command-line syntax."""
+
+    method: str
+    reference_lab: str | None = None
+    nominal: float | None = None
+    tolerance: float | None = None
+    tolerance_relative: bool = False
+    distribution: str = "rectangular"
+
+    @classmethod
+    def parse(cls, text: str) -> AssignedSpec:
+        """``reference:<LAB>`` | ``nominal:<value>:<tol>[%][:rect|:normal]`` |
+        ``weighted-mean`` | ``algorithm-a`` | ``median`` | ``dersimonian-laird``."""
+        head, _, rest = text.partition(":")
+        method = head.strip().lower().replace("-", "_")
+        if method == "reference" and rest.strip():
+            return cls(method, reference_lab=rest.strip())
+        if method == "nominal" and rest:
+            return cls._parse_nominal(text, rest)
+        if method in METHODS and method not in ("reference", "nominal") and not rest:
+            return cls(method)
+        raise ValueError(
+            f"--assigned {text!r} is not understood; use reference:<LAB>, "
+            "nominal:<value>:<tolerance>[%][:rect|:normal], weighted-mean, algorithm-a, "
+            "median or dersimonian-laird"
+        )
+
+    @classmethod
+    def _parse_nominal(cls, text: str, rest: str) -> AssignedSpec:
+        parts = rest.split(":")
+        dist = {"rect": "rectangular", "rectangular": "rectangular", "normal": "normal"}
+        try:
+            value = float(parts[0])
+            tol_text = parts[1].strip()
+            relative = tol_text.endswith("%")
+            tolerance = float(tol_text.rstrip("%"))
+            distribution = dist[parts[2].strip().lower()] if len(parts) > 2 else "rectangular"
+        except (IndexError, ValueError, KeyError):
+            raise ValueError(
+                f"--assigned {text!r}: expected nominal:<value>:<tolerance>[%][:rect|:normal], "
+                "e.g. nominal:418:1%:rect"
+            ) from None
+        if len(parts) > 3 or not (value > 0 and tolerance > 0 and math.isfinite(value + tolerance)):
+            raise ValueError(f"--assigned {text!r}: value and tolerance must be finite and > 0")
+        return cls(
+            "nominal",
+            nominal=value,
+            tolerance=tolerance,
+            tolerance_relative=relative,
+            distribution=distribution,
+        )
+
+
+@dataclass(frozen=True)
+class SigmaPtSpec:
+    """σ_pt: none, prescribed (absolute or % of x_pt) or the robust s* of the round."""
+
+    mode: str = "none"
+    value: float | None = None
+
+    @classmethod
+    def parse(cls, text: str | None) -> SigmaPtSpec:
+        if text is None or text.strip().lower() == "none":
+            return cls()
+        if text.strip().lower() == "robust":
+            return cls("robust")
+        relative = text.strip().endswith("%")
+        try:
+            value = float(text.strip().rstrip("%"))
+        except ValueError:
+            value = math.nan
+        if not (value > 0 and math.isfinite(value)):
+            raise ValueError(f"--sigma-pt {text!r}: use a number > 0, a percentage, or robust")
+        return cls("relative" if relative else "absolute", value)
+
+
+NO_SIGMA_PT = SigmaPtSpec()
+
+
+@dataclass(frozen=True)
+class Analysis:
+    table: ResultTable
+    groups: Groups
+    points: list[tuple[Any, ...]]  # one POINT_KEYS tuple per group
+    assigned: AssignedValues
+    sigma_pt: FloatArray  # NaN where σ_pt is not used
+    scores: Scores
+    compatibility: list[CompatibilityMatrix]
+
+
+def analyse(
+    table: ResultTable,
+    assigned: AssignedSpec,
+    *,
+    sigma_pt: SigmaPtSpec = NO_SIGMA_PT,
+    en_limit: float = 1.0,
+    compare: Sequence[tuple[str, Sequence[str] | None]] = (),
+) -> Analysis:
+    """Assigned values and scores for every measurement point, plus the requested matrices."""
+    groups, points = Groups.from_labels(
+        table.device, table.axis, table.frequency_hz, table.bench, table.direction
+    )
+    x, u = table.value, table.standard_uncertainty
+    values = assigned_values(table, groups, points, assigned)
+    sigma = sigma_pt_values(x, groups, values, sigma_pt)
+    contributes = values.included if values.method in _CORRELATED else None
+    scores = compute_scores(
+        x,
+        u,
+        table.expanded_uncertainty,
+        groups,
+        values.value,
+        values.standard_uncertainty,
+        sigma_pt=sigma,
+        contributes=contributes,
+        en_limit=en_limit,
+    )
+    matrices = [
+        m
+        for factor, by in compare
+        for m in compatibility_matrices(table.columns(), factor, by, limit=en_limit)
+    ]
+    return Analysis(table, groups, points, values, sigma, scores, matrices)
+
+
+# Methods whose x_pt is built from the participants' own results with weights 1/u²,
+# so that the Cox (2002) correction u²(d) = u²(x) − u²(x_pt) applies.
+_CORRELATED = frozenset({"weighted_mean", "largest_consistent_subset", "reference"})
+
+
+def assigned_values(
+    table: ResultTable, groups: Groups, points: list[tuple[Any, ...]], spec: AssignedSpec
+) -> AssignedValues:
+    x, u = table.value, table.standard_uncertainty
+    if spec.method == "reference":
+        is_ref = table.lab == spec.reference_lab
+        if not is_ref.any():
+            labs = ", ".join(sorted({str(v) for v in table.lab}))
+            raise CoreInputError(
+                f"reference laboratory {spec.reference_lab!r} is not in the table (labs: {labs})"
+            )
+        return _reference(x, u, groups, points, is_ref)
+    if spec.method == "nominal":
+        assert spec.nominal is not None and spec.tolerance is not None
+        return av.nominal_value(
+            spec.nominal,
+            spec.tolerance,
+            groups,
+            relative=spec.tolerance_relative,
+            distribution=spec.distribution,
+        )  # type: ignore[arg-type]
+    if spec.method == "weighted_mean":
+        return _weighted_mean_or_subset(x, u, groups)
+    if spec.method == "algorithm_a":
+        return robust.algorithm_a(x, groups)
+    if spec.method == "median":
+        return robust.median_made(x, groups)
+    if spec.method == "dersimonian_laird":
+        return av.dersimonian_laird(x, u, groups)
+    raise CoreInputError(f"unknown assigned-value method {spec.method!r}")
+
+
+def _reference(
+    x: FloatArray, u: FloatArray, groups: Groups, points: list[tuple[Any, ...]], is_ref: np.ndarray
+) -> AssignedValues:
+    missing = np.flatnonzero(groups.sum(is_ref) == 0)
+    if missing.size:
+        names = "; ".join(_point_label(points[g]) for g in missing[:10])
+        raise CoreInputError(
+            f"the reference laboratory has no result for {missing.size} measurement point(s): "
+            f"{names}"
+        )
+    return av.reference_value(x, u, groups, is_ref)
+
+
+def _weighted_mean_or_subset(x: FloatArray, u: FloatArray, groups: Groups) -> AssignedValues:
+    """Weighted mean (Cox 2002 procedure A); where the χ² test fails, the largest
+    consistent subset (Cox 2007).  The per-point ``method`` diagnostic says which."""
+    return av.largest_consistent_subset(x, u, groups)
+
+
+def sigma_pt_values(
+    x: FloatArray, groups: Groups, values: AssignedValues, spec: SigmaPtSpec
+) -> FloatArray:
+    if spec.mode == "none":
+        return np.full(groups.n_groups, np.nan)
+    if spec.mode == "robust":
+        return robust.sigma_pt_robust(x, groups)
+    assert spec.value is not None
+    return av.sigma_pt_prescribed(
+        spec.value, groups.n_groups, x_pt=values.value, relative=spec.mode == "relative"
+    )
+
+
+def _point_label(point: tuple[Any, ...]) -> str:
+    device, axis, f, bench, direction = point
+    return f"{device} {axis} {f:g} Hz {bench} {direction}"
+
+
+def point_method(analysis: Analysis, g: int) -> str:
+    """The method name reported for one point (weighted mean vs largest subset)."""
+    a = analysis.assigned
+    if a.method == "largest_consistent_subset":
+        return "weighted_mean" if bool(a.diagnostics["consistent_all"][g]) else a.method
+    return a.method
+
+
+def _plain(v: Any) -> Any:
+    """numpy scalars to JSON-safe Python; NaN and inf become None."""
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    return v
+
+
+def to_json(analysis: Analysis) -> dict[str, list[dict[str, Any]]]:
+    """The JSON document of formats.md §4 (full precision; NaN/inf as null)."""
+    return {
+        "assigned_values": assigned_records(analysis),
+        "scores": score_records(analysis),
+        "compatibility": compatibility_records(analysis.compatibility),
+    }
+
+
+def assigned_records(analysis: Analysis) -> list[dict[str, Any]]:
+    a = analysis.assigned
+    out = []
+    for g, point in enumerate(analysis.points):
+        rec: dict[str, Any] = dict(zip(POINT_KEYS, point, strict=True))
+        rec |= {
+            "value": _plain(a.value[g]),
+            "standard_uncertainty": _plain(a.standard_uncertainty[g]),
+            "method": point_method(analysis, g),
+            "n": int(analysis.groups.counts()[g]),
+        }
+        if math.isfinite(analysis.sigma_pt[g]):
+            rec["sigma_pt"] = _plain(analysis.sigma_pt[g])
+        rec |= {k: _plain(v[g]) for k, v in a.diagnostics.items() if np.ndim(v) == 1}
+        out.append(rec)
+    return out
+
+
+def score_records(analysis: Analysis) -> list[dict[str, Any]]:
+    t, s = analysis.table, analysis.scores
+    has_sigma = np.isfinite(analysis.sigma_pt)[analysis.groups.index]
+    out = []
+    for i in range(t.value.size):
+        rec: dict[str, Any] = {
+            "device": t.device[i],
+            "axis": t.axis[i],
+            "frequency_hz": float(t.frequency_hz[i]),
+            "bench": t.bench[i],
+            "direction": t.direction[i],
+            "lab": t.lab[i],
+            "value": float(t.value[i]),
+            "expanded_uncertainty": float(t.expanded_uncertainty[i]),
+            "d": float(s.d[i]),
+            "d_percent": float(s.d_percent[i]),
+            "en": float(s.en[i]),
+            "zeta": float(s.zeta[i]),
+        }
+        if has_sigma[i]:
+            rec["z"] = float(s.z[i])
+            rec["z_prime"] = float(s.z_prime[i])
+            rec["z_flag"] = FLAG_LABELS[s.performance_flag[i]]
+        rec["flag"] = FLAG_LABELS[s.en_flag[i]]
+        rec["correlation_applied"] = bool(s.correlation_applied[i])
+        out.append(rec)
+    return out
+
+
+def compatibility_records(matrices: Sequence[CompatibilityMatrix]) -> list[dict[str, Any]]:
+    out = []
+    for m in matrices:
+        rec: dict[str, Any] = {"factor": m.factor}
+        rec |= {k: _plain(v) for k, v in m.group.items()}
+        rec |= {
+            "levels": [_plain(v) for v in m.levels],
+            "value": [float(v) for v in m.value],
+            "expanded_uncertainty": [float(v) for v in m.expanded_uncertainty],
+            "en": [[float(v) for v in row] for row in m.en],
+            "incompatible_pairs": int(m.incompatible_pairs),
+        }
+        out.append(rec)
+    return out
