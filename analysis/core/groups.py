@@ -108,14 +108,31 @@ class Groups:
     def padded(self, values: ArrayLike, fill: float = np.nan) -> FloatArray:
         """Values laid out as a (n_groups, max_count) array, ``fill`` in unused cells."""
         v = np.asarray(values, dtype=np.float64)
+        if self._is_rectangular():  # sorted by group, equal sizes: a plain reshape
+            return v.reshape(self.n_groups, -1).copy()
         rows, cols = self._padded_positions()
         width = int(self.counts().max()) if self.n_groups else 0
         out = np.full((self.n_groups, width), fill, dtype=np.float64)
         out[rows, cols] = v[self.order()]
         return out
 
+    def _is_rectangular(self) -> bool:
+        """Results already sorted by group and every group the same size (the usual
+        layout of a round loaded point by point): padding needs no scatter."""
+        if "rectangular" not in self._cache:
+            c = self.counts()
+            flag = bool(
+                self.n_groups > 0
+                and c.min() == c.max()
+                and (self.size < 2 or bool(np.all(self.index[1:] >= self.index[:-1])))
+            )
+            self._cache["rectangular"] = np.array(flag)
+        return bool(self._cache["rectangular"])
+
     def unpad(self, padded: np.ndarray) -> np.ndarray:
         """Inverse of :meth:`padded`: back to one value per result, in input order."""
+        if self._is_rectangular():
+            return padded.reshape(-1).copy()
         rows, cols = self._padded_positions()
         out = np.empty(self.size, dtype=padded.dtype)
         out[self.order()] = padded[rows, cols]

@@ -16,6 +16,7 @@ cancellation from outliers).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -38,6 +39,9 @@ ALG_A_DELTA = 1.5  # ISO 13528:2022 C.3.1, Formula (C.7)
 U_FACTOR = 1.25  # ISO 13528:2022 7.7.3, u(x_pt) = 1.25 s*/sqrt(p)
 _EPS = 8 * np.finfo(np.float64).eps  # floor of the relative stopping rule (rounding noise)
 _COLLAPSE = 1e-9  # s* below this fraction of its start value is reported as 0
+# In the scaled units of the iteration (largest deviation = 1) an s* this small lives in
+# subnormal arithmetic, where the update can stall without converging: a collapse too.
+_SUBNORMAL = np.finfo(np.float64).tiny * 2.0**53
 
 
 @dataclass(frozen=True)
@@ -59,7 +63,9 @@ class PooledDeviation:
 
 @dataclass(frozen=True)
 class _Sorted:
-    """Results of every group sorted in a (n_groups, max_n) array, NaN after the n-th."""
+    """Results of every group sorted in a (n_groups, max_n) array, NaN after the n-th.
+
+    ``rows`` must not change once :attr:`keys` has been used (searches are cached)."""
 
     rows: FloatArray
     n: IntArray
@@ -67,6 +73,19 @@ class _Sorted:
     @property
     def index(self) -> IntArray:
         return np.arange(self.n.size)
+
+    @cached_property
+    def keys(self) -> np.ndarray:
+        """The rows as one globally sorted 1-D array of complex keys row + value·j.
+
+        numpy orders complex numbers lexicographically (real part, then imaginary), so
+        one ``np.searchsorted`` finds a value in every row at once, exactly (no float
+        offsets).  The NaN padding becomes +inf, which stays at the end of its row."""
+        vals = np.where(np.isnan(self.rows), np.inf, self.rows)
+        keys = np.empty(self.rows.shape, dtype=np.complex128)
+        keys.real = self.index[:, None]
+        keys.imag = vals
+        return keys.reshape(-1)
 
 
 def _sorted_groups(name: str, x: ArrayLike, groups: Groups) -> _Sorted:
@@ -77,7 +96,9 @@ def _sorted_groups(name: str, x: ArrayLike, groups: Groups) -> _Sorted:
     empty = np.flatnonzero(n == 0)
     if empty.size:
         raise CoreInputError(f"group(s) {empty[:10].tolist()} have no results")
-    return _Sorted(np.sort(groups.padded(arr), axis=1), n)
+    rows = groups.padded(arr)  # a fresh array: sort it in place
+    rows.sort(axis=1)
+    return _Sorted(rows, n)
 
 
 def _row_median(s: _Sorted) -> FloatArray:
@@ -98,38 +119,66 @@ def _row_quantile(s: _Sorted, q: float) -> FloatArray:
     return np.where(t >= 0.5, b - diff * (1 - t), a + diff * t)
 
 
-def _count_below(
-    rows: FloatArray, sel: IntArray, n: IntArray, v: FloatArray, *, inclusive: bool
-) -> IntArray:
-    """Per selected row, how many of its first n sorted values are < v (<= v if inclusive).
-
-    A binary search run on all rows together: one step per bit of the row width."""
-    lo = np.zeros(sel.size, dtype=np.intp)
-    hi = n.astype(np.intp).copy()
-    last = rows.shape[1] - 1
-    for _ in range(int(rows.shape[1]).bit_length() + 1):
-        open_ = lo < hi
-        mid = (lo + hi) // 2
-        val = rows[sel, np.minimum(mid, last)]
-        right = open_ & ((val <= v) if inclusive else (val < v))
-        lo = np.where(right, mid + 1, lo)
-        hi = np.where(open_ & ~right, mid, hi)
-    return lo
+def _count_below(s: _Sorted, sel: IntArray, v: FloatArray, *, inclusive: bool) -> IntArray:
+    """Per selected row, how many of its first n sorted values are < v (<= v if inclusive),
+    for all rows in one binary search over :attr:`_Sorted.keys`."""
+    q = np.empty(sel.size, dtype=np.complex128)
+    q.real = sel
+    q.imag = v
+    pos = np.searchsorted(s.keys, q, side="right" if inclusive else "left")
+    return np.minimum(pos - sel * s.rows.shape[1], s.n[sel])
 
 
 def _more_than_half_identical(s: _Sorted, value: FloatArray) -> BoolArray:
     """True where more than half of a group's results equal ``value`` (its median)."""
     sel = s.index
-    equal = _count_below(s.rows, sel, s.n, value, inclusive=True) - _count_below(
-        s.rows, sel, s.n, value, inclusive=False
+    equal = _count_below(s, sel, value, inclusive=True) - _count_below(
+        s, sel, value, inclusive=False
     )
     return 2 * equal > s.n
 
 
 def _made(s: _Sorted, med: FloatArray) -> FloatArray:
-    """MADe = 1.483 median|x_i - median(x)|, ISO 13528:2022 C.2.2."""
-    dev = _Sorted(np.sort(np.abs(s.rows - med[:, None]), axis=1), s.n)
-    return MADE_FACTOR * _row_median(dev)
+    """MADe = 1.483 median|x_i - median(x)|, ISO 13528:2022 C.2.2.
+
+    The absolute deviations of a sorted row are two sorted runs (left of the median,
+    read backwards, and right of it), so their order statistics come from a k-th
+    smallest search over two sorted arrays instead of a second sort."""
+    n = s.n
+    lo_k = _kth_abs_deviation(s, med, (n - 1) // 2)
+    hi_k = _kth_abs_deviation(s, med, n // 2)
+    return MADE_FACTOR * (lo_k + hi_k) / 2
+
+
+def _kth_abs_deviation(s: _Sorted, med: FloatArray, k: IntArray) -> FloatArray:
+    """k-th smallest (0-based) of |x_i - med| per sorted row, by bisection on how many
+    deviations are on the left side: O(log n) vectorised steps, no sort."""
+    r = s.index
+    split = _count_below(s, r, med, inclusive=False)  # x_i < med left of split
+    n_left, n_right = split, s.n - split
+    last = s.rows.shape[1] - 1
+
+    def left(t: IntArray) -> FloatArray:  # t-th smallest deviation on the left (0-based)
+        return med - s.rows[r, np.clip(split - 1 - t, 0, last)]
+
+    def right(t: IntArray) -> FloatArray:
+        return s.rows[r, np.clip(split + t, 0, last)] - med
+
+    # Find how many of the k+1 smallest come from the left: lo <= a <= hi.
+    lo = np.maximum(0, k + 1 - n_right)
+    hi = np.minimum(k + 1, n_left)
+    for _ in range(int(s.rows.shape[1]).bit_length() + 1):
+        a = (lo + hi) // 2
+        b = k + 1 - a
+        # too few from the left when the next left value is smaller than the last right one
+        more = (a < n_left) & (b > 0) & (left(a) < right(b - 1))
+        lo = np.where(more & (lo < hi), a + 1, lo)
+        hi = np.where(~more & (lo < hi), a, hi)
+    a = lo
+    b = k + 1 - a
+    cand_left = np.where(a > 0, left(a - 1), -np.inf)
+    cand_right = np.where(b > 0, right(b - 1), -np.inf)
+    return np.maximum(cand_left, cand_right)
 
 
 def _assigned(
@@ -171,24 +220,48 @@ def median_niqr(x: ArrayLike, groups: Groups) -> AssignedValues:
 
 @dataclass
 class _Prefix:
-    """Outward partial sums of a sorted, median-centred row: ``pos[j]`` sums the positive
-    values before j, ``neg[j]`` the negative values from j on (and the same for squares)."""
+    """Outward partial sums of sorted, median-centred rows, for window sums in O(1).
 
-    pos: FloatArray
-    neg: FloatArray
-    pos2: FloatArray
-    neg2: FloatArray
+    ``out[r, t]`` is the sum of the t values next to the split (the first value >= 0)
+    going outwards: rows 0..G-1 hold the right side, a[split], a[split+1], ...; rows
+    G..2G-1 the left side, a[split-1], a[split-2], ...  Summing outwards from the
+    median keeps far outliers out of every sum that is used (no cancellation), and
+    each side is only half a row wide, so one cumsum of G x n values serves both.
+    """
+
+    split: IntArray
+    sums: FloatArray
+    squares: FloatArray
 
     @classmethod
-    def build(cls, a: FloatArray) -> _Prefix:
-        p = np.where(a > 0, a, 0.0)
-        m = np.where(a < 0, a, 0.0)
-        return cls(_cum(p), _cum(m[:, ::-1])[:, ::-1], _cum(p * p), _cum((m * m)[:, ::-1])[:, ::-1])
+    def build(cls, a: _Sorted) -> _Prefix:
+        g = a.n.size
+        split = _count_below(a, a.index, np.zeros(g), inclusive=False)
+        width = int(max(np.max(split), np.max(a.n - split))) if g else 0
+        t = np.arange(width)
+        cols = np.concatenate([split[:, None] + t, split[:, None] - 1 - t])
+        valid = np.concatenate([cols[:g] < a.n[:, None], cols[g:] >= 0])
+        rows2 = np.concatenate([a.index, a.index])[:, None]
+        np.clip(cols, 0, a.rows.shape[1] - 1, out=cols)
+        side = a.rows[rows2, cols]
+        side[~valid] = 0.0
+        sums = _cum(side)
+        np.multiply(side, side, out=side)
+        return cls(split, sums, _cum(side))
+
+    def _signed(self, table: FloatArray, sel: IntArray, p: IntArray) -> FloatArray:
+        """S(p) with sum(a[i:j]) = S(j) - S(i): right of the split the outward sum up to
+        p, left of it minus the outward sum down to p."""
+        g = self.split.size
+        k = p - self.split[sel]
+        right = table[sel, np.maximum(k, 0)]
+        left = table[g + sel, np.maximum(-k, 0)]
+        return np.where(k >= 0, right, -left)
 
     def window(self, sel: IntArray, i: IntArray, j: IntArray) -> tuple[FloatArray, FloatArray]:
         """Sum and sum of squares of the values at positions i..j-1 of the selected rows."""
-        s1 = (self.pos[sel, j] - self.pos[sel, i]) + (self.neg[sel, i] - self.neg[sel, j])
-        s2 = (self.pos2[sel, j] - self.pos2[sel, i]) + (self.neg2[sel, i] - self.neg2[sel, j])
+        s1 = self._signed(self.sums, sel, j) - self._signed(self.sums, sel, i)
+        s2 = self._signed(self.squares, sel, j) - self._signed(self.squares, sel, i)
         return s1, s2
 
 
@@ -219,8 +292,8 @@ def _a_step(
     every result inside the limits is identical (the collapse pattern)."""
     n = a.n[sel]
     lo, hi = x - ALG_A_DELTA * s, x + ALG_A_DELTA * s
-    i = _count_below(a.rows, sel, n, lo, inclusive=False)
-    j = _count_below(a.rows, sel, n, hi, inclusive=True)
+    i = _count_below(a, sel, lo, inclusive=False)
+    j = _count_below(a, sel, hi, inclusive=True)
     k_lo, k_in, k_hi = i, j - i, n - j
     s1, s2 = pre.window(sel, i, j)
     mean = (k_lo * lo + s1 + k_hi * hi) / n
@@ -244,7 +317,11 @@ def _a_update(
     x, s = st.x[sel], st.s[sel]
     shrink = flat & (new_s < s)
     r = np.where(shrink, new_s / np.where(s > 0, s, 1.0), np.nan)
-    collapse = (new_s < _COLLAPSE * st.s0[sel]) | (shrink & (np.abs(r - st.ratio[sel]) <= 1e-12))
+    collapse = (
+        (new_s < _COLLAPSE * st.s0[sel])
+        | (new_s < _SUBNORMAL)
+        | (shrink & (np.abs(r - st.ratio[sel]) <= 1e-12))
+    )
     limit = np.maximum(rtol * new_s, _EPS * np.abs(new_x))
     done = (np.abs(new_x - x) < limit) & (np.abs(new_s - s) < limit)
     st.ratio[sel] = r
@@ -293,10 +370,14 @@ def algorithm_a(
         raise CoreInputError("rtol must be > 0 and max_iter >= 1")
     s = _sorted_groups("x", x, groups)
     med = _row_median(s)
-    rows = s.rows - med[:, None]
+    # Centre on the median and scale to the largest deviation, in place (the sorted
+    # rows are not needed again): the iteration then works in units of order one.
+    rows = s.rows
+    rows -= med[:, None]
     m = np.fmax(np.abs(rows[s.index, 0]), np.abs(rows[s.index, s.n - 1]))
     unit = np.where(m > 0, m, 1.0)
-    a = _Sorted(rows / unit[:, None], s.n)
+    rows /= unit[:, None]
+    a = _Sorted(rows, s.n)
     s0, made_zero = _a_start(a)
     g = s.n.size
     st = _AState(
@@ -309,7 +390,7 @@ def algorithm_a(
         np.zeros(g, bool),
         np.full(g, np.nan),
     )
-    pre = _Prefix.build(a.rows)
+    pre = _Prefix.build(a)
     for it in range(1, max_iter + 1):
         sel = np.flatnonzero(st.active)
         if not sel.size:
@@ -396,7 +477,7 @@ def algorithm_s(
         if not sel.size:
             break
         psi = eta[sel] * w_star[sel]
-        k = _count_below(a.rows, sel, a.n[sel], psi, inclusive=True)
+        k = _count_below(a, sel, psi, inclusive=True)
         new = xi[sel] * np.sqrt((c2[sel, k] + (a.n[sel] - k) * psi**2) / a.n[sel])
         zeros_only = (k == 0) | (a.rows[sel, np.maximum(k - 1, 0)] == 0)
         collapse = (new < _COLLAPSE * w0[sel]) | ((new < w_star[sel]) & zeros_only)

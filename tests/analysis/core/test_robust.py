@@ -247,3 +247,16 @@ def test_many_groups_against_oracle_with_outliers() -> None:
         ref = oracle.algorithm_a(x[idx == g])
         assert av.value[g] == pytest.approx(ref.location, rel=1e-11)
         assert av.diagnostics["s_star"][g] == pytest.approx(ref.scale, rel=1e-8)
+
+
+def test_algorithm_a_subnormal_spread_is_a_collapse_not_a_stall() -> None:
+    """Found by hypothesis: half zeros, a subnormal and a far outlier start s* in
+    subnormal arithmetic, where the update stalls (pt13528 runs to its limit).  The
+    core reports the collapse: x* = median, s* = 0, degenerate, converged."""
+    data = [0.0, 0.0, 2.225073858507203e-309, -1.203418129376554e-89, 0.0, 892232.7738277668]
+    av = robust.algorithm_a(np.array(data), Groups.from_index([0] * 6, 1))
+    assert av.value[0] == 0.0
+    assert av.diagnostics["s_star"][0] == 0.0
+    assert av.diagnostics["degenerate"][0]
+    assert av.diagnostics["converged"][0]
+    assert av.diagnostics["iterations"][0] < 10
