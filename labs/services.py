@@ -4,12 +4,23 @@ from __future__ import annotations
 
 import secrets
 
+from django.contrib.auth.models import AbstractBaseUser
 from django.db import IntegrityError, transaction
 from django.utils import timezone
 
-from labs.models import Laboratory, Participant, Submission
-from proficiency.errors import InvalidTransition, StateConflict
-from proficiency.models import Comparison
+from labs.importers import (
+    ImportErrors,
+    PointKey,
+    ResultRow,
+    TableContext,
+    missing_points,
+    parse_rows,
+    parse_table,
+)
+from labs.models import Laboratory, Participant, Result, Submission
+from labs.selectors import comparison_points, table_context
+from proficiency.errors import InvalidTransition, StateConflict, ValidationFailed
+from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 
 CODE_PREFIX = "L"
 
@@ -91,3 +102,156 @@ def submission_transition(*, submission: Submission, to: str, message: str = "")
 def submission_next_version(*, participant: Participant) -> int:
     last = participant.submissions.order_by("-version").values_list("version", flat=True).first()
     return (last or 0) + 1
+
+
+def _check_open(comparison: Comparison) -> None:
+    if comparison.status != ComparisonStatus.OPEN:
+        raise StateConflict(
+            f"Comparison {comparison.code} is {comparison.status}: results can be submitted "
+            "only while it is open."
+        )
+    deadline = comparison.submission_deadline
+    if deadline is not None and timezone.now() > deadline:
+        raise StateConflict(
+            f"The submission deadline of {comparison.code} passed on "
+            f"{deadline:%Y-%m-%d %H:%M} UTC; ask the coordinator to extend it."
+        )
+
+
+def _missing_error(missing: list[PointKey]) -> ValidationFailed:
+    listed = [
+        {
+            "row": None,
+            "field": None,
+            "message": f"missing result for {p.device}, {p.axis}, {p.frequency_hz:g} Hz, "
+            f"{p.bench} {p.direction}",
+        }
+        for p in missing
+    ]
+    return ValidationFailed(
+        f"{len(missing)} measurement point(s) have no result; a partial submission can only "
+        "be saved as a draft.",
+        errors=listed,
+    )
+
+
+@transaction.atomic
+def submission_save(
+    *,
+    participant: Participant,
+    rows: list[ResultRow],
+    source: str,
+    user: AbstractBaseUser | None,
+    submit: bool,
+) -> Submission:
+    """Store a participant's results, all or nothing (the one path for grid, upload and API).
+
+    ``rows`` come from the importer (validated against :func:`table_context`).
+    Saving a draft replaces the participant's open draft, if any; submitting
+    needs a result for every measurement point and makes the draft (or a new
+    version) ``submitted``.  Decided versions are never touched: a correction
+    is a new version.  The participant row is locked so versions never collide.
+    """
+    Participant.objects.select_for_update().get(pk=participant.pk)
+    comparison = participant.comparison
+    _check_open(comparison)
+    points = comparison_points(comparison)
+    context = TableContext.from_points(points)
+    if submit and (missing := missing_points(rows, context)):
+        raise _missing_error(missing)
+    draft = participant.submissions.filter(status=St.DRAFT).order_by("-version").first()
+    if draft is None:
+        draft = Submission.objects.create(
+            participant=participant,
+            version=submission_next_version(participant=participant),
+            source=source,
+            submitted_by=user,
+        )
+    else:
+        draft.results.all().delete()
+        draft.source, draft.submitted_by = source, user
+        draft.save(update_fields=["source", "submitted_by"])
+    Result.objects.bulk_create(_results(draft, rows, context, points))
+    if submit:
+        return submission_transition(submission=draft, to=St.SUBMITTED)
+    return draft
+
+
+def _results(
+    submission: Submission,
+    rows: list[ResultRow],
+    context: TableContext,
+    points: dict[PointKey, MeasurementPoint],
+) -> list[Result]:
+    out = []
+    for row in rows:
+        matches = context.matching_points(row)
+        if len(matches) != 1:  # the importer already refused these; never store a guess
+            raise ValidationFailed(
+                f"row {row.row} does not identify one measurement point of this comparison",
+                errors=[{"row": row.row, "field": None, "message": "unknown measurement point"}],
+            )
+        out.append(
+            Result(
+                submission=submission,
+                measurement_point=points[matches[0]],
+                value=row.sensitivity,
+                unit=row.unit,
+                expanded_uncertainty=row.expanded_uncertainty,
+                coverage_factor=row.coverage_factor,
+                dof=row.dof,
+                note=row.note,
+            )
+        )
+    return out
+
+
+def _import_failed(exc: ImportErrors) -> ValidationFailed:
+    n = len(exc.errors)
+    return ValidationFailed(
+        f"The results were not stored: {n} problem{'s' if n != 1 else ''} found.",
+        errors=exc.as_dicts(),
+    )
+
+
+def submission_from_file(
+    *,
+    participant: Participant,
+    data: bytes,
+    filename: str | None,
+    user: AbstractBaseUser | None,
+    submit: bool,
+) -> Submission:
+    """A CSV/XLSX upload (formats.md §1): parse against the comparison, then save."""
+    try:
+        rows = parse_table(
+            data,
+            filename=filename,
+            lab_column="forbidden",
+            context=table_context(participant.comparison),
+        )
+    except ImportErrors as exc:
+        raise _import_failed(exc) from None
+    return submission_save(
+        participant=participant, rows=rows, source=Submission.Source.FILE, user=user, submit=submit
+    )
+
+
+def submission_from_records(
+    *,
+    participant: Participant,
+    records: list[object],
+    source: str,
+    user: AbstractBaseUser | None,
+    submit: bool,
+) -> Submission:
+    """JSON rows from the API or the web grid: same rules as a file."""
+    try:
+        rows = parse_rows(
+            records, lab_column="forbidden", context=table_context(participant.comparison)
+        )
+    except ImportErrors as exc:
+        raise _import_failed(exc) from None
+    return submission_save(
+        participant=participant, rows=rows, source=source, user=user, submit=submit
+    )
