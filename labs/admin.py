@@ -1,6 +1,7 @@
 from django.contrib import admin
+from rest_framework_api_key.admin import APIKeyModelAdmin
 
-from labs.models import Laboratory, Membership, Participant, Result, Submission
+from labs.models import LabAPIKey, Laboratory, Membership, Participant, Result, Submission
 
 
 @admin.register(Laboratory)
@@ -63,3 +64,10 @@ class ResultAdmin(admin.ModelAdmin):
     search_fields = ["submission__participant__code", "submission__participant__laboratory__name"]
     list_select_related = ["submission__participant", "measurement_point__device"]
     raw_id_fields = ["submission", "measurement_point"]
+
+
+@admin.register(LabAPIKey)
+class LabAPIKeyAdmin(APIKeyModelAdmin):
+    list_display = [*APIKeyModelAdmin.list_display, "laboratory"]
+    list_filter = [*APIKeyModelAdmin.list_filter, "laboratory"]
+    search_fields = [*APIKeyModelAdmin.search_fields, "laboratory__name"]

@@ -4,3 +4,14 @@ from django.apps import AppConfig
 class LabsConfig(AppConfig):
     name = "labs"
     verbose_name = "Laboratories"
+
+    def ready(self) -> None:
+        from auditlog.registry import auditlog
+
+        from labs import models
+
+        auditlog.register(models.Laboratory)
+        auditlog.register(models.Membership)
+        auditlog.register(models.Participant)
+        auditlog.register(models.Submission)
+        auditlog.register(models.LabAPIKey, exclude_fields=["hashed_key"])

@@ -6,6 +6,7 @@ from django.conf import settings
 from django.db import models
 from django.db.models import F, Q
 from django.db.models.functions import NullIf
+from rest_framework_api_key.models import AbstractAPIKey
 
 from proficiency.models import Comparison, MeasurementPoint, finite_positive
 
@@ -165,3 +166,19 @@ class Result(models.Model):
 
     def __str__(self) -> str:
         return f"{self.measurement_point}: {self.value:g} ± {self.expanded_uncertainty:g}"
+
+
+class LabAPIKey(AbstractAPIKey):
+    """A hashed, revocable API key that belongs to one laboratory (formats.md §3).
+
+    Only the prefix and the hash are stored; the key itself is shown once, when it
+    is created (``labs.services.api_key_create``)."""
+
+    laboratory = models.ForeignKey(Laboratory, on_delete=models.CASCADE, related_name="api_keys")
+    created_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL
+    )
+
+    class Meta(AbstractAPIKey.Meta):
+        verbose_name = "lab API key"
+        verbose_name_plural = "lab API keys"

@@ -17,7 +17,7 @@ from labs.importers import (
     parse_rows,
     parse_table,
 )
-from labs.models import Laboratory, Participant, Result, Submission
+from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission
 from labs.selectors import comparison_points, table_context
 from proficiency.errors import InvalidTransition, StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
@@ -255,3 +255,22 @@ def submission_from_records(
     return submission_save(
         participant=participant, rows=rows, source=source, user=user, submit=submit
     )
+
+
+def api_key_create(
+    *, laboratory: Laboratory, name: str, user: AbstractBaseUser | None
+) -> tuple[LabAPIKey, str]:
+    """A new key for ``laboratory``; returns the row and the key, which is never shown again."""
+    name = name.strip()
+    if not name:
+        raise ValidationFailed("Give the key a name, e.g. the software or computer using it.")
+    key_obj, key = LabAPIKey.objects.create_key(name=name, laboratory=laboratory, created_by=user)
+    return key_obj, key
+
+
+def api_key_revoke(*, key: LabAPIKey) -> LabAPIKey:
+    """Revoke a key (kept for the record; it no longer authenticates). Idempotent."""
+    if not key.revoked:
+        key.revoked = True
+        key.save(update_fields=["revoked"])
+    return key
