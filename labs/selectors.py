@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
-from django.db.models import Max, OuterRef, QuerySet, Subquery
+from django.contrib.auth.models import AbstractBaseUser, AnonymousUser
+from django.db.models import Count, Max, OuterRef, QuerySet, Subquery
 
 from labs.importers import PointKey, ResultRow, TableContext
-from labs.models import Result, Submission
+from labs.models import Laboratory, Participant, Result, Submission
+from proficiency.errors import NotVisible
 from proficiency.models import Comparison, MeasurementPoint
 
 
@@ -95,3 +97,51 @@ def table_context(comparison: Comparison) -> TableContext:
     """What a results table for this comparison may contain (importer rules per comparison)."""
     units = dict(comparison.devices.values_list("name", "unit"))
     return TableContext.from_points(comparison_points(comparison), device_units=units)
+
+
+def user_laboratories(user: AbstractBaseUser | AnonymousUser) -> QuerySet[Laboratory]:
+    """Laboratories the user is a member of (staff or manager)."""
+    if not user.is_authenticated:
+        return Laboratory.objects.none()
+    return Laboratory.objects.filter(members__user=user)
+
+
+def lab_comparisons(laboratory: Laboratory) -> QuerySet[Comparison]:
+    """Comparisons the laboratory takes part in (what its people and its API keys see)."""
+    return Comparison.objects.filter(participants__laboratory=laboratory)
+
+
+def participant_for_lab(*, code: str, laboratory: Laboratory) -> Participant:
+    """The laboratory's participation in comparison ``code``; NotVisible (404) when the
+    comparison does not exist or the laboratory does not take part (no existence leak)."""
+    participant = (
+        Participant.objects.select_related("comparison", "laboratory")
+        .filter(comparison__code=code, laboratory=laboratory)
+        .first()
+    )
+    if participant is None:
+        raise NotVisible(f"No comparison {code!r} is visible to you.")
+    return participant
+
+
+def participant_for_user(*, code: str, user: AbstractBaseUser | AnonymousUser) -> Participant:
+    """The participation in ``code`` of one of the user's laboratories (404 otherwise).
+    A person in several participating laboratories gets the first by name."""
+    participant = (
+        Participant.objects.select_related("comparison", "laboratory")
+        .filter(comparison__code=code, laboratory__in=user_laboratories(user))
+        .order_by("laboratory__name")
+        .first()
+    )
+    if participant is None:
+        raise NotVisible(f"No comparison {code!r} is visible to you.")
+    return participant
+
+
+def participant_submissions(participant: Participant) -> QuerySet[Submission]:
+    """All versions of one participant's submissions, newest first, with result counts."""
+    return (
+        participant.submissions.select_related("submitted_by")
+        .annotate(n_results=Count("results"))
+        .order_by("-version")
+    )
