@@ -62,13 +62,20 @@ def _weighted(
     x is shifted by each group's first result so that identical values give
     exactly that value and χ² suffers no cancellation.
     """
-    shift = groups.padded(x)[:, 0]
-    dx = x - shift[groups.index]
-    wm = np.where(mask, w, 0.0)
+    counts = groups.counts()
+    shift = x[groups.order()[np.cumsum(counts) - counts]]  # first result of each group
+    idx = groups.index
+    dx = x - shift[idx]
+    everyone = bool(mask.all())
+    wm = w if everyone else np.where(mask, w, 0.0)
     s1 = groups.sum(wm)
-    dy = groups.sum(wm * dx) / s1
-    chi2 = groups.sum(wm * (dx - dy[groups.index]) ** 2)
-    n = np.bincount(groups.index[mask], minlength=groups.n_groups)
+    wdx = wm * dx
+    dy = groups.sum(wdx) / s1
+    r = dx - dy[idx]
+    r *= r
+    r *= wm
+    chi2 = groups.sum(r)
+    n = counts if everyone else np.bincount(idx[mask], minlength=groups.n_groups)
     return shift + dy, 1.0 / np.sqrt(s1), chi2, n
 
 

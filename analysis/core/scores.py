@@ -153,16 +153,19 @@ def _uncertainty_of_d(
     the uncorrected sum is used and the result is reported in
     ``correlation_failed`` rather than raising, so a whole round is still scored.
     """
-    u_d = np.sqrt(u * u + u_pt * u_pt)  # hypot is ~5x slower and overflow is not a risk here
-    big_d = np.sqrt(big_u * big_u + big_u_pt * big_u_pt)
-    if not corr.any():  # the common case (independent x_pt): no second pass
-        return u_d, big_d, corr, corr.copy()
-    u2_minus = u**2 - u_pt**2
-    big2_minus = big_u**2 - big_u_pt**2
-    failed = corr & ((u2_minus <= _CORRELATION_RTOL * u**2) | (big2_minus <= 0))
+    u2, big2 = u * u, big_u * big_u
+    u2_pt, big2_pt = u_pt * u_pt, big_u_pt * big_u_pt
+    if not corr.any():  # the common case (independent x_pt): plain sums
+        return np.sqrt(u2 + u2_pt), np.sqrt(big2 + big2_pt), corr, corr.copy()
+    sign = np.where(corr, -1.0, 1.0)
+    u2_d = u2 + sign * u2_pt
+    big2_d = big2 + sign * big2_pt
+    failed = corr & ((u2_d <= _CORRELATION_RTOL * u2) | (big2_d <= 0))
+    if failed.any():
+        u2_d[failed] = (u2 + u2_pt)[failed]
+        big2_d[failed] = (big2 + big2_pt)[failed]
     applied = corr & ~failed
-    u_d[applied] = np.sqrt(u2_minus[applied])
-    big_d[applied] = np.sqrt(big2_minus[applied])
+    u_d, big_d = np.sqrt(u2_d), np.sqrt(big2_d)
     return u_d, big_d, applied, failed
 
 
