@@ -1,6 +1,6 @@
 from django.contrib import admin
 
-from analysis.models import AnalysisRun, AssignedValue, Report, Score
+from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Report, Score
 
 
 @admin.register(AnalysisRun)
@@ -31,3 +31,10 @@ class ReportAdmin(admin.ModelAdmin):
     list_display = ["comparison", "kind", "participant", "version", "superseded", "created_at"]
     list_filter = ["kind", "superseded", "comparison"]
     search_fields = ["comparison__code", "participant__code", "sha256"]
+
+
+@admin.register(CompatibilityMatrix)
+class CompatibilityMatrixAdmin(admin.ModelAdmin):
+    list_display = ["factor", "group_key", "run", "incompatible_pairs"]
+    list_filter = ["factor", "run__comparison"]
+    search_fields = ["group_key"]

@@ -82,7 +82,8 @@ class Score(models.Model):
     zeta = models.FloatField()
     z = models.FloatField(null=True, blank=True)
     z_prime = models.FloatField(null=True, blank=True)
-    flag = models.CharField(max_length=12)
+    flag = models.CharField(max_length=12, help_text="En flag (the primary score)")
+    z_flag = models.CharField(max_length=12, blank=True, help_text="z or z′ flag, if σ_pt set")
     correlation_applied = models.BooleanField(default=False)
 
     class Meta:
@@ -93,6 +94,31 @@ class Score(models.Model):
 
     def __str__(self) -> str:
         return f"En={self.en:.3f} ({self.flag})"
+
+
+class CompatibilityMatrix(models.Model):
+    """Pairwise En between the levels of one factor within one group (domain.md §6)."""
+
+    run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="matrices")
+    factor = models.CharField(max_length=12)
+    group = models.JSONField(default=dict, help_text="the fixed keys, e.g. device and axis")
+    group_key = models.CharField(max_length=300, help_text="canonical text of ``group``")
+    levels = models.JSONField(default=list)
+    values = models.JSONField(default=list, help_text="aggregated value per level")
+    expanded_uncertainties = models.JSONField(default=list)
+    en = models.JSONField(default=list, help_text="square matrix, list of rows")
+    incompatible_pairs = models.PositiveIntegerField(default=0)
+
+    class Meta:
+        ordering = ["run", "factor", "group_key"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["run", "factor", "group_key"], name="matrix_once_per_group"
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.factor} | {self.group_key} (run {self.run_id})"
 
 
 class Report(models.Model):

@@ -180,10 +180,26 @@ def analyse(
     groups, points = Groups.from_labels(
         table.device, table.axis, table.frequency_hz, table.bench, table.direction
     )
-    x, u = table.value, table.standard_uncertainty
     values = assigned_values(table, groups, points, assigned)
-    sigma = sigma_pt_values(x, groups, values, sigma_pt)
-    contributes = values.included if values.method in _CORRELATED else None
+    sigma = sigma_pt_values(table.value, groups, values, sigma_pt)
+    return analyse_grouped(
+        table, groups, points, values, sigma=sigma, en_limit=en_limit, compare=compare
+    )
+
+
+def analyse_grouped(
+    table: ResultTable,
+    groups: Groups,
+    points: list[tuple[Any, ...]],
+    values: AssignedValues,
+    *,
+    sigma: FloatArray,
+    en_limit: float = 1.0,
+    compare: Sequence[tuple[str, Sequence[str] | None]] = (),
+) -> Analysis:
+    """Scores and matrices for results already grouped, with their assigned values."""
+    x, u = table.value, table.standard_uncertainty
+    contributes = _contributes(values)
     scores = compute_scores(
         x,
         u,
@@ -201,6 +217,49 @@ def analyse(
         for m in compatibility_matrices(table.columns(), factor, by, limit=en_limit)
     ]
     return Analysis(table, groups, points, values, sigma, scores, matrices)
+
+
+def _contributes(values: AssignedValues) -> np.ndarray | None:
+    """Results whose own value entered x_pt with weights 1/u² (Cox 2002 correction)."""
+    if values.method == "mixed":
+        methods = np.asarray(values.diagnostics["method"])
+        correlated = np.isin(methods, list(_CORRELATED))
+        return values.included & correlated[_result_groups(values)]
+    return values.included if values.method in _CORRELATED else None
+
+
+def _result_groups(values: AssignedValues) -> np.ndarray:
+    return np.asarray(values.diagnostics["_group_of_result"])
+
+
+def assigned_values_mixed(
+    table: ResultTable, groups: Groups, points: list[tuple[Any, ...]], specs: list[AssignedSpec]
+) -> AssignedValues:
+    """Assigned values where each measurement point may have its own method (per-point
+    override, domain.md §5): each distinct method runs once over its points."""
+    if len(set(specs)) == 1:
+        return assigned_values(table, groups, points, specs[0])
+    value = np.empty(groups.n_groups)
+    u_pt = np.empty(groups.n_groups)
+    included = np.zeros(groups.size, dtype=bool)
+    method = np.empty(groups.n_groups, dtype=object)
+    diagnostics: dict[str, np.ndarray] = {}
+    for spec in dict.fromkeys(specs):  # a loop over methods, not over results
+        sel = np.flatnonzero([s == spec for s in specs])
+        rows = np.flatnonzero(np.isin(groups.index, sel))
+        sub = Groups.from_index(np.searchsorted(sel, groups.index[rows]), sel.size)
+        part = assigned_values(_take(table, rows), sub, [points[g] for g in sel], spec)
+        value[sel], u_pt[sel], included[rows] = part.value, part.standard_uncertainty, part.included
+        method[sel] = [point_method_of(part, g) for g in range(sel.size)]
+        for key, arr in part.diagnostics.items():
+            diagnostics.setdefault(key, np.full(groups.n_groups, np.nan, dtype=object))[sel] = arr
+    diagnostics["method"] = method
+    diagnostics["_group_of_result"] = groups.index
+    return AssignedValues(value, u_pt, "mixed", included, diagnostics)
+
+
+def _take(table: ResultTable, rows: np.ndarray) -> ResultTable:
+    return ResultTable(**{f: getattr(table, f)[rows] for f in table.__dataclass_fields__})
 
 
 # Methods whose x_pt is built from the participants' own results with weights 1/u²,
@@ -277,12 +336,17 @@ def _point_label(point: tuple[Any, ...]) -> str:
     return f"{device} {axis} {f:g} Hz {bench} {direction}"
 
 
-def point_method(analysis: Analysis, g: int) -> str:
+def point_method_of(values: AssignedValues, g: int) -> str:
     """The method name reported for one point (weighted mean vs largest subset)."""
-    a = analysis.assigned
-    if a.method == "largest_consistent_subset":
-        return "weighted_mean" if bool(a.diagnostics["consistent_all"][g]) else a.method
-    return a.method
+    if values.method == "mixed":
+        return str(values.diagnostics["method"][g])
+    if values.method == "largest_consistent_subset":
+        return "weighted_mean" if bool(values.diagnostics["consistent_all"][g]) else values.method
+    return values.method
+
+
+def point_method(analysis: Analysis, g: int) -> str:
+    return point_method_of(analysis.assigned, g)
 
 
 def _plain(v: Any) -> Any:
@@ -316,7 +380,11 @@ def assigned_records(analysis: Analysis) -> list[dict[str, Any]]:
         }
         if math.isfinite(analysis.sigma_pt[g]):
             rec["sigma_pt"] = _plain(analysis.sigma_pt[g])
-        rec |= {k: _plain(v[g]) for k, v in a.diagnostics.items() if np.ndim(v) == 1}
+        rec |= {
+            k: _plain(v[g])
+            for k, v in a.diagnostics.items()
+            if np.ndim(v) == 1 and not k.startswith("_") and k != "method"
+        }
         out.append(rec)
     return out
 

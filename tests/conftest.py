@@ -15,6 +15,21 @@ def fast_password_hasher(request):
     settings.PASSWORD_HASHERS = ["django.contrib.auth.hashers.MD5PasswordHasher"]
 
 
+@pytest.fixture(autouse=True)
+def celery_eager(request):
+    """Tasks run in-process unless a test asks for the real worker (``real_worker`` mark),
+    also when CELERY_BROKER_URL points at a real broker (as in CI)."""
+    if "real_worker" in request.keywords or not request.config.pluginmanager.hasplugin("django"):
+        yield
+        return
+    from proficiency.celery import app
+
+    old = app.conf.task_always_eager
+    app.conf.task_always_eager = True
+    yield
+    app.conf.task_always_eager = old
+
+
 @pytest.fixture
 def comparison(db):
     from tests.factories import ComparisonFactory
