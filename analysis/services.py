@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 from django.contrib.auth.models import AbstractBaseUser
-from django.db import transaction
+from django.db import connection, transaction
 from django.utils import timezone
 
 import proficiency
@@ -40,6 +40,10 @@ from proficiency.models import Comparison, ComparisonStatus, SigmaPtMode
 
 log = logging.getLogger(__name__)
 R = AnalysisRun.Status
+# Matrices stored with a run. The lab x lab matrix grows with the square of the
+# participants at every point (10^9 cells for 1,000 labs x 1,000 points), so it is
+# computed on request for the points asked for, never stored for the whole round.
+STORED_FACTORS = tuple(f for f in FACTORS if f != "lab")
 STALE_AFTER = dt.timedelta(hours=1)  # a "running" run older than this was lost with its worker
 BATCH = 5000
 
@@ -73,7 +77,7 @@ def _parameters(c: Comparison) -> dict[str, Any]:
         "sigma_pt_mode": c.sigma_pt_mode,
         "sigma_pt_value": c.sigma_pt_value,
         "en_limit": c.en_limit,
-        "compare": list(FACTORS),
+        "compare": list(STORED_FACTORS),
     }
 
 
@@ -131,7 +135,7 @@ def _compute(run: AnalysisRun, loaded: LoadedRound) -> Analysis:
     values = assigned_values_mixed(table, loaded.groups, keys, specs)
     sigma = _sigma(comparison, loaded, values)
     _stage(run.pk, "scores", 50)
-    compare = [(f, None) for f in run.parameters.get("compare", FACTORS)]
+    compare = [(f, None) for f in run.parameters.get("compare", STORED_FACTORS)]
     _stage(run.pk, "compatibility", 65)
     return analyse_grouped(
         table, loaded.groups, keys, values, sigma=sigma, en_limit=comparison.en_limit,
@@ -171,7 +175,10 @@ def _save(run: AnalysisRun, loaded: LoadedRound, analysis: Analysis) -> None:
     for model in (AssignedValue, Score, CompatibilityMatrix):
         model.objects.filter(run=run).delete()
     AssignedValue.objects.bulk_create(_assigned_rows(run, loaded, analysis), batch_size=BATCH)
-    Score.objects.bulk_create(_score_rows(run, loaded, analysis), batch_size=BATCH)
+    if connection.vendor == "postgresql":
+        _copy_scores(run, loaded, analysis)
+    else:
+        Score.objects.bulk_create(_score_rows(run, loaded, analysis), batch_size=BATCH)
     CompatibilityMatrix.objects.bulk_create(_matrix_rows(run, analysis), batch_size=BATCH)
     AnalysisRun.objects.filter(pk=run.pk).update(
         status=R.SUCCEEDED, progress=100, stage="done", finished_at=timezone.now()
@@ -206,25 +213,45 @@ def _assigned_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[A
     ]
 
 
-def _score_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[Score]:
+_SCORE_COLUMNS = (
+    "run_id", "result_id", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag", "z_flag",
+    "correlation_applied",
+)  # fmt: skip
+
+
+def _score_columns(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[list[Any]]:
+    """The score table as columns of Python values (NaN-free: no σ_pt → None)."""
     s = a.scores
     has_sigma = np.isfinite(a.sigma_pt)[loaded.groups.index]
+    labels = np.array(FLAG_LABELS, dtype=object)
+    n = loaded.result_id.size
     return [
-        Score(
-            run=run,
-            result_id=int(rid),
-            d=float(s.d[i]),
-            d_percent=float(s.d_percent[i]),
-            en=float(s.en[i]),
-            zeta=float(s.zeta[i]),
-            z=float(s.z[i]) if has_sigma[i] else None,
-            z_prime=float(s.z_prime[i]) if has_sigma[i] else None,
-            flag=FLAG_LABELS[s.en_flag[i]],
-            z_flag=FLAG_LABELS[s.performance_flag[i]] if has_sigma[i] else "",
-            correlation_applied=bool(s.correlation_applied[i]),
-        )
-        for i, rid in enumerate(loaded.result_id)
+        [run.pk] * n,
+        loaded.result_id.tolist(),
+        s.d.tolist(),
+        s.d_percent.tolist(),
+        s.en.tolist(),
+        s.zeta.tolist(),
+        np.where(has_sigma, s.z, None).tolist(),
+        np.where(has_sigma, s.z_prime, None).tolist(),
+        labels[s.en_flag].tolist(),
+        np.where(has_sigma, labels[s.performance_flag], "").tolist(),
+        s.correlation_applied.tolist(),
     ]
+
+
+def _copy_scores(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> None:
+    """PostgreSQL COPY: ~20x faster than INSERTs for a million scores."""
+    cols = _score_columns(run, loaded, a)
+    sql = f"COPY analysis_score ({', '.join(_SCORE_COLUMNS)}) FROM STDIN"
+    with connection.cursor() as cur, cur.copy(sql) as copy:
+        for row in zip(*cols, strict=True):
+            copy.write_row(row)
+
+
+def _score_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[Score]:
+    cols = _score_columns(run, loaded, a)
+    return [Score(**dict(zip(_SCORE_COLUMNS, row, strict=True))) for row in zip(*cols, strict=True)]
 
 
 def _matrix_rows(run: AnalysisRun, a: Analysis) -> list[CompatibilityMatrix]:
