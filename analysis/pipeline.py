@@ -248,7 +248,7 @@ def assigned_values_mixed(
         sel = np.flatnonzero([s == spec for s in specs])
         rows = np.flatnonzero(np.isin(groups.index, sel))
         sub = Groups.from_index(np.searchsorted(sel, groups.index[rows]), sel.size)
-        part = assigned_values(_take(table, rows), sub, [points[g] for g in sel], spec)
+        part = assigned_values(take_rows(table, rows), sub, [points[g] for g in sel], spec)
         value[sel], u_pt[sel], included[rows] = part.value, part.standard_uncertainty, part.included
         method[sel] = [point_method_of(part, g) for g in range(sel.size)]
         for key, arr in part.diagnostics.items():
@@ -258,7 +258,7 @@ def assigned_values_mixed(
     return AssignedValues(value, u_pt, "mixed", included, diagnostics)
 
 
-def _take(table: ResultTable, rows: np.ndarray) -> ResultTable:
+def take_rows(table: ResultTable, rows: np.ndarray) -> ResultTable:
     return ResultTable(**{f: getattr(table, f)[rows] for f in table.__dataclass_fields__})
 
 

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from django.db.models import QuerySet
 
+from analysis.core.compatibility import compatibility_matrices
 from analysis.core.groups import Groups
-from analysis.models import AnalysisRun
-from analysis.pipeline import AssignedSpec, ResultTable
+from analysis.models import AnalysisRun, CompatibilityMatrix, Score
+from analysis.pipeline import AssignedSpec, ResultTable, take_rows
 from labs.models import Result, Submission
 from labs.selectors import current_submissions
+from proficiency.errors import ValidationFailed
 from proficiency.models import AssignedValueMethod, Comparison, MeasurementPoint
 
 _FIELDS = (
@@ -109,3 +113,64 @@ def current_run(comparison: Comparison) -> AnalysisRun | None:
         .order_by("-finished_at", "-pk")
         .first()
     )
+
+
+SCORE_FILTERS = {
+    "device": "result__measurement_point__device__name",
+    "axis": "result__measurement_point__axis",
+    "frequency_hz": "result__measurement_point__frequency_hz",
+    "bench": "result__measurement_point__bench",
+    "direction": "result__measurement_point__direction",
+    "lab": "result__submission__participant__code",
+}
+
+
+def run_scores(run: AnalysisRun, filters: dict[str, str]) -> QuerySet[Score]:
+    """Scores of one run with their result and point, filtered by point keys or lab code."""
+    qs = Score.objects.filter(run=run).select_related(
+        "result__measurement_point__device", "result__submission__participant"
+    )
+    lookups = {SCORE_FILTERS[k]: v for k, v in filters.items() if k in SCORE_FILTERS and v}
+    return qs.filter(**lookups).order_by(
+        "result__measurement_point__device__name",
+        "result__measurement_point__bench",
+        "result__measurement_point__direction",
+        "result__measurement_point__axis",
+        "result__measurement_point__frequency_hz",
+        "result__submission__participant__code",
+    )
+
+
+def run_matrices(
+    run: AnalysisRun, factor: str, filters: dict[str, str]
+) -> list[CompatibilityMatrix]:
+    """Stored matrices of ``factor`` whose group matches every given key (device=..., ...)."""
+    found = CompatibilityMatrix.objects.filter(run=run, factor=factor).order_by("group_key")
+    wanted = {k: v for k, v in filters.items() if v}
+    return [m for m in found if all(str(m.group.get(k)) == v for k, v in wanted.items()
+                                    if k in m.group)]  # fmt: skip
+
+
+MAX_LAB_MATRIX_POINTS = 50
+
+
+def lab_matrices(comparison: Comparison, filters: dict[str, str]) -> list[Any]:
+    """The lab x lab En matrices of the selected points, computed on request from the
+    accepted results (never stored for a whole round: they grow with labs squared)."""
+    loaded = load_round(comparison)
+    t = loaded.table
+    keep = np.ones(t.value.size, dtype=bool)
+    for key in ("device", "axis", "bench", "direction"):
+        if filters.get(key):
+            keep &= getattr(t, key) == filters[key]
+    if filters.get("frequency_hz"):
+        keep &= np.isclose(t.frequency_hz, float(filters["frequency_hz"]), rtol=1e-9, atol=0)
+    rows = np.flatnonzero(keep)
+    table = take_rows(t, rows)
+    n_points = np.unique(loaded.groups.index[rows]).size
+    if n_points > MAX_LAB_MATRIX_POINTS:
+        raise ValidationFailed(
+            f"The lab matrix was asked for {n_points} measurement points; narrow it down to at "
+            f"most {MAX_LAB_MATRIX_POINTS} with device, axis, frequency_hz, bench, direction."
+        )
+    return compatibility_matrices(table.columns(), "lab", None, limit=comparison.en_limit)

@@ -167,3 +167,27 @@ def comparison_apply_template(
         comparison.protocol = template_key
         comparison.save(update_fields=["protocol", "updated_at"])
     return created
+
+
+def comparison_publish(*, comparison: Comparison, user: object | None = None) -> Comparison:
+    """analysed → published: results become visible to the participants, who are told by
+    e-mail (console back end by default). Reports are issued by the report service."""
+    from django.core.mail import send_mass_mail
+
+    from labs.models import Membership
+
+    published = comparison_transition(comparison=comparison, to=S.PUBLISHED)
+    emails = sorted(
+        set(
+            Membership.objects.filter(
+                laboratory__participations__comparison=published, user__email__gt=""
+            ).values_list("user__email", flat=True)
+        )
+    )
+    subject = f"[{published.code}] results published"
+    body = (
+        f"The results of {published.code} ({published.title}) are published. Sign in to see "
+        "your scores and download your report."
+    )
+    send_mass_mail([(subject, body, None, [e]) for e in emails], fail_silently=False)
+    return published

@@ -1,0 +1,99 @@
+"""Serializers of the coordinator API: plain shapes, labs by participant code only."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rest_framework import serializers
+
+from analysis.models import AnalysisRun, CompatibilityMatrix, Score
+from labs.models import Submission
+from proficiency.models import Comparison
+
+
+class AnalysisRunSerializer(serializers.ModelSerializer):
+    comparison = serializers.CharField(source="comparison.code")
+
+    class Meta:
+        model = AnalysisRun
+        fields = [
+            "id", "comparison", "status", "progress", "stage", "error", "parameters",
+            "code_version", "created_at", "started_at", "finished_at",
+        ]  # fmt: skip
+        read_only_fields = fields
+
+
+class ScoreSerializer(serializers.ModelSerializer):
+    lab = serializers.CharField(source="result.submission.participant.code")
+    device = serializers.CharField(source="result.measurement_point.device.name")
+    axis = serializers.CharField(source="result.measurement_point.axis")
+    frequency_hz = serializers.FloatField(source="result.measurement_point.frequency_hz")
+    bench = serializers.CharField(source="result.measurement_point.bench")
+    direction = serializers.CharField(source="result.measurement_point.direction")
+    value = serializers.FloatField(source="result.value")
+    expanded_uncertainty = serializers.FloatField(source="result.expanded_uncertainty")
+
+    class Meta:
+        model = Score
+        fields = [
+            "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
+            "expanded_uncertainty", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag",
+            "z_flag", "correlation_applied",
+        ]  # fmt: skip
+
+
+class MatrixSerializer(serializers.Serializer):
+    """Documentation shape of one compatibility matrix (formats.md §4 keys)."""
+
+    factor = serializers.CharField()
+    group = serializers.DictField()
+    levels = serializers.ListField()
+    value = serializers.ListField(child=serializers.FloatField())
+    expanded_uncertainty = serializers.ListField(child=serializers.FloatField())
+    en = serializers.ListField(child=serializers.ListField(child=serializers.FloatField()))
+    incompatible_pairs = serializers.IntegerField()
+
+
+def _plain(v: Any) -> Any:
+    return v.item() if hasattr(v, "item") else v
+
+
+def matrix_dict(m: Any) -> dict[str, Any]:
+    """A core CompatibilityMatrix (computed on request) as JSON."""
+    return {
+        "factor": m.factor,
+        "group": {k: _plain(v) for k, v in m.group.items()},
+        "levels": [_plain(v) for v in m.levels],
+        "value": [float(v) for v in m.value],
+        "expanded_uncertainty": [float(v) for v in m.expanded_uncertainty],
+        "en": [[float(v) for v in row] for row in m.en],
+        "incompatible_pairs": int(m.incompatible_pairs),
+    }
+
+
+def stored_matrix_dict(m: CompatibilityMatrix) -> dict[str, Any]:
+    return {
+        "factor": m.factor,
+        "group": m.group,
+        "levels": m.levels,
+        "value": m.values,
+        "expanded_uncertainty": m.expanded_uncertainties,
+        "en": m.en,
+        "incompatible_pairs": m.incompatible_pairs,
+    }
+
+
+class ComparisonStateSerializer(serializers.ModelSerializer):
+    class Meta:
+        model = Comparison
+        fields = ["code", "status", "submission_deadline"]
+        read_only_fields = fields
+
+
+class DecisionResultSerializer(serializers.ModelSerializer):
+    participant = serializers.CharField(source="participant.code")
+
+    class Meta:
+        model = Submission
+        fields = ["participant", "version", "status", "message", "decided_at"]
+        read_only_fields = fields

@@ -1,0 +1,234 @@
+"""Coordinator API (formats.md §3): analysis runs, scores, compatibility, publication,
+life-cycle transitions and submission review.
+
+Participants see scores and matrices only after publication, their own scores only,
+other laboratories by code. Everything outside the caller's scope answers 404.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from drf_spectacular.utils import OpenApiParameter, extend_schema
+from rest_framework import generics, serializers, status
+from rest_framework.exceptions import PermissionDenied
+from rest_framework.request import Request
+from rest_framework.response import Response
+
+from analysis.api import serializers as s
+from analysis.models import AnalysisRun, Score
+from analysis.selectors import SCORE_FILTERS, current_run, lab_matrices, run_matrices, run_scores
+from analysis.services import analysis_run_start
+from labs.api.permissions import ComparisonAccess
+from labs.api.views import ApiView
+from labs.models import Result, Submission
+from labs.review import submission_decide, submission_request_check
+from proficiency.errors import NotVisible, StateConflict, ValidationFailed
+from proficiency.models import ComparisonStatus
+from proficiency.selectors import comparisons_visible_to
+from proficiency.services import comparison_publish, comparison_transition
+
+FACTORS = ("axis", "frequency", "device", "bench", "direction", "lab")
+POINT_FILTERS = [
+    OpenApiParameter(k, str, description=f"only this {k}") for k in SCORE_FILTERS
+]  # fmt: skip
+
+
+def require_coordinator(access: ComparisonAccess) -> None:
+    if not access.is_coordinator:
+        raise PermissionDenied(f"Only a coordinator of {access.comparison.code} can do this.")
+
+
+def published_or_coordinator(access: ComparisonAccess) -> None:
+    if access.is_coordinator:
+        return
+    if access.comparison.status != ComparisonStatus.PUBLISHED:
+        raise StateConflict(f"The results of {access.comparison.code} are not published yet.")
+
+
+def shown_run(access: ComparisonAccess) -> AnalysisRun:
+    run = current_run(access.comparison)
+    if run is None:
+        raise StateConflict(f"{access.comparison.code} has no successful analysis run yet.")
+    return run
+
+
+class AnalysisRunCollection(ApiView, generics.ListAPIView):
+    """GET: the comparison's runs, newest first. POST: start a run (202)."""
+
+    serializer_class = s.AnalysisRunSerializer
+
+    def get_queryset(self):  # type: ignore[no-untyped-def]
+        if getattr(self, "swagger_fake_view", False):  # schema generation: no request
+            return AnalysisRun.objects.none()
+        access = self.access(self.kwargs["code"])
+        require_coordinator(access)
+        return access.comparison.analysis_runs.order_by("-created_at", "-pk")
+
+    @extend_schema(request=None, responses={202: s.AnalysisRunSerializer})
+    def post(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        run = analysis_run_start(comparison=access.comparison, user=request.user)
+        run.refresh_from_db()
+        return Response(s.AnalysisRunSerializer(run).data, status=status.HTTP_202_ACCEPTED)
+
+
+class AnalysisRunDetail(ApiView):
+    """Status, progress 0–100, stage and error of one run (coordinators)."""
+
+    @extend_schema(responses=s.AnalysisRunSerializer)
+    def get(self, request: Request, pk: int) -> Response:
+        run = AnalysisRun.objects.filter(
+            pk=pk, comparison__in=comparisons_visible_to(request.user)
+        ).first()
+        if run is None or not self.access(run.comparison.code).is_coordinator:
+            raise NotVisible(f"No analysis run {pk} is visible to you.")
+        return Response(s.AnalysisRunSerializer(run).data)
+
+
+class ScoreList(ApiView, generics.ListAPIView):
+    """Scores of the current run: coordinators all; participants their own after publication."""
+
+    serializer_class = s.ScoreSerializer
+
+    @extend_schema(parameters=POINT_FILTERS)
+    def get(self, request: Request, *args: Any, **kwargs: Any) -> Response:
+        return super().get(request, *args, **kwargs)
+
+    def get_queryset(self):  # type: ignore[no-untyped-def]
+        if getattr(self, "swagger_fake_view", False):
+            return Score.objects.none()
+        access = self.access(self.kwargs["code"])
+        published_or_coordinator(access)
+        filters = {k: self.request.query_params.get(k, "") for k in SCORE_FILTERS}
+        if not access.is_coordinator:
+            assert access.participant is not None
+            filters["lab"] = access.participant.code
+        return run_scores(shown_run(access), filters)
+
+
+class CompatibilityQuery(serializers.Serializer):
+    factor = serializers.ChoiceField(choices=FACTORS)
+    device = serializers.CharField(required=False)
+    axis = serializers.CharField(required=False)
+    frequency_hz = serializers.CharField(required=False)
+    bench = serializers.CharField(required=False)
+    direction = serializers.CharField(required=False)
+
+
+class CompatibilityView(ApiView):
+    """Compatibility matrices of one factor; ``lab`` is computed for the selected points."""
+
+    @extend_schema(parameters=[CompatibilityQuery], responses=s.MatrixSerializer(many=True))
+    def get(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        published_or_coordinator(access)
+        query = CompatibilityQuery(data=request.query_params)
+        if not query.is_valid():
+            raise ValidationFailed(
+                "Bad query: give factor=axis|frequency|device|bench|direction|lab.",
+                errors=[{"row": None, "field": k, "message": str(v[0])}
+                        for k, v in query.errors.items()],
+            )  # fmt: skip
+        params = dict(query.validated_data)
+        factor = params.pop("factor")
+        if factor == "lab":
+            data = [s.matrix_dict(m) for m in lab_matrices(access.comparison, params)]
+        else:
+            data = [
+                s.stored_matrix_dict(m) for m in run_matrices(shown_run(access), factor, params)
+            ]
+        return Response(data)
+
+
+class TransitionSerializer(serializers.Serializer):
+    to = serializers.ChoiceField(choices=["open", "closed"])
+
+
+class ComparisonTransition(ApiView):
+    """Open or close the comparison (coordinators); publication has its own endpoint."""
+
+    @extend_schema(request=TransitionSerializer, responses={200: s.ComparisonStateSerializer})
+    def post(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        body = TransitionSerializer(data=request.data)
+        if not body.is_valid():
+            raise ValidationFailed("Give to=open or to=closed.")
+        c = comparison_transition(comparison=access.comparison, to=body.validated_data["to"])
+        return Response(s.ComparisonStateSerializer(c).data)
+
+
+class Publish(ApiView):
+    """Publish the analysed results: participants see them and are notified."""
+
+    @extend_schema(request=None, responses={200: s.ComparisonStateSerializer})
+    def post(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        if current_run(access.comparison) is None:
+            raise StateConflict(f"{code} has no successful analysis run to publish.")
+        c = comparison_publish(comparison=access.comparison, user=request.user)
+        return Response(s.ComparisonStateSerializer(c).data)
+
+
+class DecisionSerializer(serializers.Serializer):
+    decision = serializers.ChoiceField(choices=["accept", "reject"])
+    message = serializers.CharField(required=False, allow_blank=True, default="")
+
+
+def _submission(access: ComparisonAccess, participant: str, version: int) -> Submission:
+    found = Submission.objects.filter(
+        participant__comparison=access.comparison, participant__code=participant, version=version
+    ).first()
+    if found is None:
+        raise NotVisible(f"No submission version {version} of that participant is visible to you.")
+    return found
+
+
+class SubmissionDecision(ApiView):
+    """Accept or reject a submitted version (coordinators); audited, the lab is told."""
+
+    @extend_schema(request=DecisionSerializer, responses={200: s.DecisionResultSerializer})
+    def post(self, request: Request, code: str, participant: str, version: int) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        body = DecisionSerializer(data=request.data)
+        if not body.is_valid():
+            raise ValidationFailed("Give decision=accept or decision=reject (and a message).")
+        decided = submission_decide(
+            submission=_submission(access, participant, version),
+            decision=body.validated_data["decision"],
+            message=body.validated_data["message"],
+            user=request.user,
+        )
+        return Response(s.DecisionResultSerializer(decided).data)
+
+
+class CheckRequestSerializer(serializers.Serializer):
+    result = serializers.IntegerField(help_text="id of the result to check")
+
+
+class RequestCheck(ApiView):
+    """Ask a lab to check one result without revealing the deviation (CIPM practice)."""
+
+    @extend_schema(request=CheckRequestSerializer, responses={202: None})
+    def post(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        body = CheckRequestSerializer(data=request.data)
+        if not body.is_valid():
+            raise ValidationFailed("Give result=<result id>.")
+        result = (
+            Result.objects.select_related("measurement_point__device", "submission__participant")
+            .filter(
+                pk=body.validated_data["result"],
+                submission__participant__comparison=access.comparison,
+            )
+            .first()
+        )
+        if result is None:
+            raise NotVisible("No such result in this comparison.")
+        submission_request_check(result=result, user=request.user)
+        return Response(status=status.HTTP_202_ACCEPTED)
