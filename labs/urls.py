@@ -1,0 +1,32 @@
+"""Web pages of the laboratories, under ``/lab/`` (the REST API lives under ``/api/v1/``)."""
+
+from django.urls import path
+
+from labs import views
+
+app_name = "labs"
+
+urlpatterns = [
+    path("lab/", views.dashboard, name="dashboard"),
+    path("lab/comparisons/<slug:code>/", views.comparison_detail, name="comparison"),
+    path("lab/comparisons/<slug:code>/results/", views.results_grid, name="grid"),
+    path("lab/comparisons/<slug:code>/upload/", views.results_upload, name="upload"),
+    path(
+        "lab/comparisons/<slug:code>/template.<str:fmt>",
+        views.results_template,
+        name="template",
+    ),
+    path("lab/comparisons/<slug:code>/submissions/", views.submission_history, name="history"),
+    path(
+        "lab/comparisons/<slug:code>/submissions/<int:version>/",
+        views.submission_detail,
+        name="submission",
+    ),
+    path("lab/api-keys/", views.api_keys_index, name="api_keys_index"),
+    path("lab/<int:lab_pk>/api-keys/", views.api_keys, name="api_keys"),
+    path(
+        "lab/<int:lab_pk>/api-keys/<str:prefix>/revoke/",
+        views.api_key_revoke,
+        name="api_key_revoke",
+    ),
+]

@@ -1,0 +1,358 @@
+"""Web pages of the laboratories (issue 4): dashboard, comparison, results grid, upload,
+template download, submission history and API keys.
+
+Thin views: find what the user may see (404 otherwise, also for other labs' objects),
+call one service or selector, render.  The results grid and the upload both go through
+``labs.services`` — the same validation and storage path as the REST API.
+"""
+
+from __future__ import annotations
+
+from django.conf import settings
+from django.contrib import messages
+from django.contrib.auth.decorators import login_required
+from django.db.models import OuterRef, QuerySet, Subquery
+from django.http import Http404, HttpRequest, HttpResponse, QueryDict
+from django.shortcuts import redirect, render
+from django.urls import reverse
+from django.views.decorators.cache import never_cache
+from django.views.decorators.http import require_GET, require_http_methods
+from django_htmx.http import HttpResponseClientRedirect
+
+from labs import services
+from labs.forms import APIKeyCreateForm, ResultGridForm, ResultUploadForm
+from labs.importers import COLUMNS, write_table
+from labs.importers.values import human_size
+from labs.models import LabAPIKey, Laboratory, Membership, Participant, Result, Submission
+from labs.selectors import (
+    comparison_points,
+    participant_for_user,
+    participant_submissions,
+    user_laboratories,
+)
+from proficiency import protocols
+from proficiency import views as proficiency_views
+from proficiency.errors import NotVisible, StateConflict, ValidationFailed
+from proficiency.models import Comparison
+
+TEMPLATE_COLUMNS = [c for c in COLUMNS if c != "lab"]
+CONTENT_TYPES = {
+    "csv": "text/csv; charset=utf-8",
+    "xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet",
+}
+
+
+# --- lookups (404 for anything that is not the user's) ------------------------------------
+
+
+def _participant(request: HttpRequest, code: str) -> Participant:
+    try:
+        return participant_for_user(code=code, user=request.user)
+    except NotVisible as exc:
+        raise Http404(exc.message) from None
+
+
+def _participations(request: HttpRequest) -> QuerySet[Participant]:
+    """The user's labs' participations, each with its latest submission version and status."""
+    latest = Submission.objects.filter(participant=OuterRef("pk")).order_by("-version")
+    return (
+        Participant.objects.filter(laboratory__in=user_laboratories(request.user))
+        .select_related("comparison", "laboratory")
+        .annotate(
+            latest_status=Subquery(latest.values("status")[:1]),
+            latest_version=Subquery(latest.values("version")[:1]),
+        )
+        .order_by("laboratory__name", "-comparison__created_at", "comparison__code")
+    )
+
+
+def _managed_lab(request: HttpRequest, lab_pk: int) -> Laboratory:
+    """A laboratory the user manages; 404 for staff and outsiders (not visible to them)."""
+    lab = Laboratory.objects.filter(
+        pk=lab_pk, members__user=request.user, members__role=Membership.Role.MANAGER
+    ).first()
+    if lab is None:
+        raise Http404("No laboratory whose API keys you manage.")
+    return lab
+
+
+def _submission(participant: Participant, version: int) -> Submission:
+    submission = participant_submissions(participant).filter(version=version).first()
+    if submission is None:
+        raise Http404(f"No version {version} of your submission.")
+    return submission
+
+
+def _grid_source(participant: Participant) -> Submission | None:
+    """What the grid starts from: the open draft, else the latest version (a correction)."""
+    versions = participant.submissions.order_by("-version")
+    return versions.filter(status=Submission.Status.DRAFT).first() or versions.first()
+
+
+def _closed_reason(comparison: Comparison) -> str | None:
+    """Why results cannot be stored now, in the service's own words (None when open)."""
+    try:
+        services._check_open(comparison)
+    except StateConflict as exc:
+        return exc.message
+    return None
+
+
+# --- dashboard and comparison --------------------------------------------------------------
+
+
+@require_GET
+def home(request: HttpRequest) -> HttpResponse:
+    """``/``: a lab member's dashboard; the public landing page for everyone else."""
+    if user_laboratories(request.user).exists():
+        return dashboard(request)
+    return proficiency_views.home(request)
+
+
+@login_required
+@require_GET
+def dashboard(request: HttpRequest) -> HttpResponse:
+    return render(request, "labs/dashboard.html", {"participations": _participations(request)})
+
+
+@login_required
+@require_GET
+def comparison_detail(request: HttpRequest, code: str) -> HttpResponse:
+    participant = _participant(request, code)
+    comparison = participant.comparison
+    context = {
+        "participant": participant,
+        "comparison": comparison,
+        "template": protocols.TEMPLATES.get(comparison.protocol),
+        "devices": comparison.devices.all(),
+        "points": list(comparison_points(comparison).values()),
+        "latest": participant_submissions(participant).first(),
+        "closed_reason": _closed_reason(comparison),
+    }
+    return render(request, "labs/comparison.html", context)
+
+
+# --- results grid ----------------------------------------------------------------------------
+
+
+def _grid_context(participant: Participant, form: ResultGridForm) -> dict[str, object]:
+    return {
+        "participant": participant,
+        "comparison": participant.comparison,
+        "form": form,
+        "source": _grid_source(participant),
+        "closed_reason": _closed_reason(participant.comparison),
+    }
+
+
+def _grid_form(participant: Participant, data: QueryDict | None = None) -> ResultGridForm:
+    source = _grid_source(participant)
+    results: dict[int, Result] = {}
+    if source is not None:
+        results = {r.measurement_point_id: r for r in source.results.all()}
+    points = list(comparison_points(participant.comparison).values())
+    return ResultGridForm(data, points=points, results=results)
+
+
+def _grid_save(request: HttpRequest, participant: Participant, form: ResultGridForm) -> bool:
+    submit = request.POST.get("action") == "submit"
+    records = form.records()
+    if not records:
+        form.summary.append("Enter at least one result before saving.")
+        return False
+    try:
+        services.submission_from_records(
+            participant=participant,
+            records=records,
+            source=Submission.Source.WEB,
+            user=request.user,
+            submit=submit,
+        )
+    except ValidationFailed as exc:
+        form.add_service_errors(exc.message, exc.errors, submit=submit)
+        return False
+    except StateConflict as exc:
+        form.summary.append(exc.message)
+        return False
+    return True
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def results_grid(request: HttpRequest, code: str) -> HttpResponse:
+    participant = _participant(request, code)
+    form = _grid_form(participant, request.POST if request.method == "POST" else None)
+    if request.method == "POST":
+        if not form.is_valid():
+            form.summary.append("Some entries are too long; see the marked rows.")
+        elif _grid_save(request, participant, form):
+            return _grid_saved(request, participant)
+    template = "labs/_grid_form.html" if request.htmx else "labs/grid.html"
+    return render(request, template, _grid_context(participant, form))
+
+
+def _grid_saved(request: HttpRequest, participant: Participant) -> HttpResponse:
+    code = participant.comparison.code
+    if request.POST.get("action") == "submit":
+        messages.success(request, "Your results were submitted. Thank you.")
+        url = reverse("labs:comparison", args=[code])
+        return HttpResponseClientRedirect(url) if request.htmx else redirect(url)
+    if request.htmx:  # saved in place: a fresh grid from the stored draft
+        form = _grid_form(participant)
+        context = _grid_context(participant, form) | {"saved": True}
+        return render(request, "labs/_grid_form.html", context)
+    messages.success(request, "Draft saved. You can come back and submit it later.")
+    return redirect("labs:grid", code=code)
+
+
+# --- upload and template download -----------------------------------------------------------
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def results_upload(request: HttpRequest, code: str) -> HttpResponse:
+    participant = _participant(request, code)
+    form = ResultUploadForm(request.POST or None, request.FILES or None)
+    report: ValidationFailed | None = None
+    if request.method == "POST" and form.is_valid():
+        submit = request.POST.get("action") == "submit"
+        try:
+            services.submission_from_file(
+                participant=participant,
+                data=form.content(),
+                filename=form.cleaned_data["file"].name,
+                user=request.user,
+                submit=submit,
+            )
+        except ValidationFailed as exc:
+            report = exc
+        except StateConflict as exc:
+            form.add_error(None, exc.message)
+        else:
+            done = "submitted" if submit else "saved as a draft"
+            messages.success(request, f"The file was read and your results were {done}.")
+            return redirect("labs:comparison", code=code)
+    context = {
+        "participant": participant,
+        "comparison": participant.comparison,
+        "form": form,
+        "report": report,
+        "closed_reason": _closed_reason(participant.comparison),
+        "max_upload": human_size(settings.MAX_UPLOAD_BYTES),
+    }
+    return render(request, "labs/upload.html", context)
+
+
+@login_required
+@require_GET
+def results_template(request: HttpRequest, code: str, fmt: str) -> HttpResponse:
+    """The comparison's measurement points as a results table with empty values to fill in."""
+    if fmt not in CONTENT_TYPES:
+        raise Http404("The template comes as .csv or .xlsx.")
+    participant = _participant(request, code)
+    comparison = participant.comparison
+    rows = [
+        {
+            "device": p.device.name,
+            "axis": p.axis,
+            "frequency_hz": p.frequency_hz,
+            "bench": p.bench,
+            "direction": p.direction,
+            "amplitude_m_s2": p.amplitude_m_s2,
+            "unit": p.device.unit,
+            "coverage_factor": 2,
+        }
+        for p in comparison_points(comparison).values()
+    ]
+    data = write_table(rows, format=fmt, columns=TEMPLATE_COLUMNS)  # type: ignore[arg-type]
+    response = HttpResponse(data, content_type=CONTENT_TYPES[fmt])
+    filename = f"{comparison.code}-results-template.{fmt}"
+    response["Content-Disposition"] = f'attachment; filename="{filename}"'
+    return response
+
+
+# --- history ---------------------------------------------------------------------------------
+
+
+@login_required
+@require_GET
+def submission_history(request: HttpRequest, code: str) -> HttpResponse:
+    participant = _participant(request, code)
+    context = {
+        "participant": participant,
+        "comparison": participant.comparison,
+        "submissions": participant_submissions(participant),
+    }
+    return render(request, "labs/history.html", context)
+
+
+@login_required
+@require_GET
+def submission_detail(request: HttpRequest, code: str, version: int) -> HttpResponse:
+    participant = _participant(request, code)
+    submission = _submission(participant, version)
+    context = {
+        "participant": participant,
+        "comparison": participant.comparison,
+        "submission": submission,
+        "results": submission.results.select_related("measurement_point__device"),
+        "is_draft": submission.status == Submission.Status.DRAFT,
+    }
+    return render(request, "labs/submission.html", context)
+
+
+# --- API keys (laboratory managers only) ---------------------------------------------------
+
+
+@login_required
+@require_GET
+def api_keys_index(request: HttpRequest) -> HttpResponse:
+    """``/lab/api-keys/``: the key page of the (first) laboratory the user manages."""
+    lab = (
+        Laboratory.objects.filter(members__user=request.user, members__role=Membership.Role.MANAGER)
+        .order_by("name")
+        .first()
+    )
+    if lab is None:
+        raise Http404("No laboratory whose API keys you manage.")
+    return redirect("labs:api_keys", lab_pk=lab.pk)
+
+
+def _keys_page(request: HttpRequest, lab: Laboratory, form: APIKeyCreateForm) -> HttpResponse:
+    keys = lab.api_keys.select_related("created_by").order_by("-created")
+    return render(request, "labs/api_keys.html", {"lab": lab, "keys": keys, "form": form})
+
+
+@never_cache
+@login_required
+@require_http_methods(["GET", "POST"])
+def api_keys(request: HttpRequest, lab_pk: int) -> HttpResponse:
+    """List the laboratory's keys; POST creates one and shows it once (never again)."""
+    lab = _managed_lab(request, lab_pk)
+    form = APIKeyCreateForm(request.POST or None)
+    if request.method == "POST" and form.is_valid():
+        try:
+            key_obj, key = services.api_key_create(
+                laboratory=lab, name=form.cleaned_data["name"], user=request.user
+            )
+        except ValidationFailed as exc:
+            form.add_error("name", exc.message)
+        else:
+            context = {"lab": lab, "key_obj": key_obj, "key": key}
+            return render(request, "labs/api_key_created.html", context)
+    return _keys_page(request, lab, form)
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def api_key_revoke(request: HttpRequest, lab_pk: int, prefix: str) -> HttpResponse:
+    """GET asks for confirmation; POST revokes (the key stays listed, marked revoked)."""
+    lab = _managed_lab(request, lab_pk)
+    key = LabAPIKey.objects.filter(laboratory=lab, prefix=prefix).first()
+    if key is None:
+        raise Http404("No such API key in your laboratory.")
+    if request.method == "POST":
+        services.api_key_revoke(key=key)
+        messages.success(request, f"The key “{key.name}” ({key.prefix}…) was revoked.")
+        return redirect("labs:api_keys", lab_pk=lab.pk)
+    return render(request, "labs/api_key_revoke.html", {"lab": lab, "key": key})
