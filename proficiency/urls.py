@@ -2,14 +2,21 @@
 
 from django.contrib import admin
 from django.urls import include, path
+from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerView
 
-from proficiency import views
+from labs import views as lab_views
 
 admin.site.site_header = "Proficiency testing — administration"
 admin.site.site_title = "PT administration"
 
 urlpatterns = [
-    path("", views.home, name="home"),
+    # "/" is a lab member's dashboard, the public landing page for everyone else.
+    path("", lab_views.home, name="home"),
+    path("", include("labs.urls")),
     path("accounts/", include("django.contrib.auth.urls")),
     path("admin/", admin.site.urls),
+    path("api/v1/", include("labs.api.urls")),
+    path("api/v1/", include("analysis.api.urls")),
+    path("api/schema/", SpectacularAPIView.as_view(), name="schema"),
+    path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),
 ]

@@ -1,0 +1,140 @@
+"""Who is calling and what they may see: queryset scoping for the API.
+
+A caller is either a laboratory (through one of its API keys) or a person
+(session). Scope, per comparison:
+
+* participant: a key of a participating laboratory, or a member (staff or
+  manager) of one; sees the comparison, its points and its own submissions;
+* coordinator: a user in ``comparison.coordinators``, or a superuser; sees the
+  comparison and every participant's submissions, laboratories by code only.
+
+Anything outside the caller's scope is :class:`~proficiency.errors.NotVisible`
+(404, never 403), so another laboratory's objects cannot even be confirmed to
+exist. 403 is kept for a visible comparison on which the caller lacks the role
+(a coordinator who is not a participant trying to submit).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from django.contrib.auth.models import AbstractBaseUser
+from django.db.models import Count, QuerySet
+from rest_framework.exceptions import PermissionDenied
+from rest_framework.request import Request
+
+from labs.api.authentication import LabKeyPrincipal
+from labs.models import Laboratory, Participant, Result, Submission
+from labs.selectors import lab_comparisons, participant_for_lab, participant_for_user
+from proficiency.errors import NotVisible, ValidationFailed
+from proficiency.models import Comparison, MeasurementPoint
+from proficiency.selectors import comparisons_visible_to
+
+
+@dataclass(frozen=True)
+class Caller:
+    """A laboratory acting through a key (``user`` is ``None``), or a signed-in person."""
+
+    user: AbstractBaseUser | None = None
+    laboratory: Laboratory | None = None
+
+
+@dataclass(frozen=True)
+class ComparisonAccess:
+    comparison: Comparison
+    participant: Participant | None
+    is_coordinator: bool
+
+
+def caller_of(request: Request) -> Caller:
+    if isinstance(request.user, LabKeyPrincipal):
+        return Caller(laboratory=request.user.laboratory)
+    return Caller(user=request.user)
+
+
+def comparisons_for(caller: Caller) -> QuerySet[Comparison]:
+    """Keys: their laboratory's participations; people: ``comparisons_visible_to``."""
+    if caller.laboratory is not None:
+        return lab_comparisons(caller.laboratory)
+    assert caller.user is not None
+    return comparisons_visible_to(caller.user)
+
+
+def comparison_access(caller: Caller, code: str) -> ComparisonAccess:
+    """The caller's roles in comparison ``code``; NotVisible (404) when it has none."""
+    if caller.laboratory is not None:
+        own = participant_for_lab(code=code, laboratory=caller.laboratory)
+        return ComparisonAccess(own.comparison, own, is_coordinator=False)
+    user = caller.user
+    assert user is not None
+    comparison = comparisons_visible_to(user).filter(code=code).first()
+    if comparison is None:
+        raise NotVisible(f"No comparison {code!r} is visible to you.")
+    try:
+        participant: Participant | None = participant_for_user(code=code, user=user)
+    except NotVisible:
+        participant = None
+    coordinator = (
+        getattr(user, "is_superuser", False) or comparison.coordinators.filter(pk=user.pk).exists()
+    )
+    return ComparisonAccess(comparison, participant, is_coordinator=coordinator)
+
+
+def require_participant(access: ComparisonAccess) -> Participant:
+    if access.participant is None:
+        raise PermissionDenied(
+            f"Only a participating laboratory can submit results to {access.comparison.code}; "
+            "you coordinate it but your account belongs to no participating laboratory."
+        )
+    return access.participant
+
+
+def measurement_points(comparison: Comparison) -> QuerySet[MeasurementPoint]:
+    return comparison.measurement_points.select_related("device").order_by(
+        "device__name", "bench", "direction", "axis", "frequency_hz", "amplitude_m_s2", "pk"
+    )
+
+
+def submissions_in_scope(access: ComparisonAccess) -> QuerySet[Submission]:
+    """Coordinators: every participant's versions; participants: their own."""
+    if access.is_coordinator:
+        found = Submission.objects.filter(participant__comparison=access.comparison)
+    elif access.participant is not None:
+        found = Submission.objects.filter(participant=access.participant)
+    else:  # pragma: no cover - comparison_access never grants neither role
+        found = Submission.objects.none()
+    return (
+        found.select_related("participant")
+        .annotate(n_results=Count("results"))
+        .order_by("participant__code", "-version")
+    )
+
+
+def submission_in_scope(
+    access: ComparisonAccess, *, version: int, participant_code: str | None
+) -> Submission:
+    """One version: a participant's own, or (coordinators) any participant's by ``?participant``."""
+    if participant_code is None:
+        if access.participant is None:
+            raise ValidationFailed(
+                "Say whose submission: add ?participant=<participant code>.",
+                errors=[{"row": None, "field": "participant", "message": "is required"}],
+            )
+        participant_code = access.participant.code
+    found = submissions_in_scope(access).filter(participant__code=participant_code, version=version)
+    submission = found.first()
+    if submission is None:
+        # The participant code is not echoed: the answer is the same whether it exists or not.
+        raise NotVisible(f"No submission version {version} of that participant is visible to you.")
+    return submission
+
+
+def submission_results(submission: Submission) -> QuerySet[Result]:
+    return submission.results.select_related("measurement_point__device").order_by(
+        "measurement_point__device__name",
+        "measurement_point__bench",
+        "measurement_point__direction",
+        "measurement_point__axis",
+        "measurement_point__frequency_hz",
+        "pk",
+    )

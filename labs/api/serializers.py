@@ -1,0 +1,280 @@
+"""Request and response shapes of the API (documented in the OpenAPI schema).
+
+Results use the column names of the results table (formats.md §1), so a row
+read from the API can be written back into a table and vice versa.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from django.db.models import QuerySet
+from drf_spectacular.utils import extend_schema_field
+from rest_framework import serializers
+
+from labs.importers import COLUMNS, write_table
+from labs.models import Result, Submission
+from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
+
+# ---------------------------------------------------------------- errors
+
+
+class RowErrorSerializer(serializers.Serializer):
+    row = serializers.IntegerField(allow_null=True, help_text="Row (file) or 1-based index (JSON)")
+    field = serializers.CharField(allow_null=True, help_text="Column, or null for the whole row")
+    message = serializers.CharField()
+
+
+class ErrorSerializer(serializers.Serializer):
+    """Every error answer: ``{"detail": "...", "errors": [{"row", "field", "message"}]}``."""
+
+    detail = serializers.CharField()
+    errors = RowErrorSerializer(many=True)
+
+
+def as_row_errors(errors: dict[str, Any]) -> list[dict[str, object]]:
+    """DRF serializer errors -> the ``errors`` list of formats.md §3."""
+    out: list[dict[str, object]] = []
+    for field, messages in errors.items():
+        for message in messages if isinstance(messages, list) else [messages]:
+            name = None if field == "non_field_errors" else field
+            out.append({"row": None, "field": name, "message": str(message)})
+    return out
+
+
+# ---------------------------------------------------------------- status fields
+
+# Comparison.status and Submission.status share the field name "status", which
+# drf-spectacular's enum post-processing would turn into two colliding "StatusEnum"
+# components (a warning, fatal with --fail-on-warn). Wrapped in allOf, each stays an
+# inline, named enum. (ENUM_NAME_OVERRIDES in SPECTACULAR_SETTINGS would do it too.)
+
+
+def _inline_enum(title: str, values: list[str]) -> dict[str, object]:
+    return {"allOf": [{"title": title, "type": "string", "enum": values}], "readOnly": True}
+
+
+@extend_schema_field(_inline_enum("ComparisonStatus", list(ComparisonStatus.values)))
+class ComparisonStatusField(serializers.CharField):
+    pass
+
+
+@extend_schema_field(_inline_enum("SubmissionStatus", list(Submission.Status.values)))
+class SubmissionStatusField(serializers.CharField):
+    pass
+
+
+# ---------------------------------------------------------------- comparisons
+
+
+class ComparisonSerializer(serializers.ModelSerializer):
+    status = ComparisonStatusField(read_only=True)
+
+    class Meta:
+        model = Comparison
+        fields = ["code", "title", "protocol", "status", "submission_deadline"]
+
+
+class DeviceSerializer(serializers.ModelSerializer):
+    class Meta:
+        model = Device
+        fields = [
+            "name",
+            "model",
+            "serial",
+            "unit",
+            "nominal_sensitivity",
+            "tolerance",
+            "tolerance_relative",
+            "tolerance_distribution",
+        ]
+
+
+class ComparisonDetailSerializer(serializers.ModelSerializer):
+    """``participant_code`` is the caller's own code (null for a coordinator only)."""
+
+    status = ComparisonStatusField(read_only=True)
+    devices = DeviceSerializer(many=True, read_only=True)
+    n_measurement_points = serializers.SerializerMethodField()
+    participant_code = serializers.SerializerMethodField()
+    roles = serializers.SerializerMethodField()
+
+    class Meta:
+        model = Comparison
+        fields = [
+            "code",
+            "title",
+            "description",
+            "protocol",
+            "status",
+            "submission_deadline",
+            "en_limit",
+            "devices",
+            "n_measurement_points",
+            "participant_code",
+            "roles",
+        ]
+
+    def get_n_measurement_points(self, obj: Comparison) -> int:
+        return obj.measurement_points.count()
+
+    def get_participant_code(self, obj: Comparison) -> str | None:
+        participant = self.context["access"].participant
+        return participant.code if participant is not None else None
+
+    def get_roles(self, obj: Comparison) -> list[str]:
+        access = self.context["access"]
+        roles = ["participant"] if access.participant is not None else []
+        return [*roles, "coordinator"] if access.is_coordinator else roles
+
+
+class MeasurementPointSerializer(serializers.ModelSerializer):
+    device = serializers.CharField(source="device.name")
+    unit = serializers.CharField(source="device.unit", help_text="Unit of the sensitivity")
+
+    class Meta:
+        model = MeasurementPoint
+        fields = [
+            "device",
+            "axis",
+            "frequency_hz",
+            "bench",
+            "direction",
+            "amplitude_m_s2",
+            "unit",
+        ]
+
+
+TEMPLATE_COLUMNS = [c for c in COLUMNS if c != "lab"]
+
+
+def template_table(points: QuerySet[MeasurementPoint], *, format: str) -> bytes:
+    """The results table of formats.md §1 with one empty row per measurement point."""
+    rows = (
+        {
+            "device": p.device.name,
+            "axis": p.axis,
+            "frequency_hz": p.frequency_hz,
+            "bench": p.bench,
+            "direction": p.direction,
+            "amplitude_m_s2": p.amplitude_m_s2,
+            "unit": p.device.unit,
+        }
+        for p in points
+    )
+    return write_table(rows, format=format, columns=TEMPLATE_COLUMNS)  # type: ignore[arg-type]
+
+
+# ---------------------------------------------------------------- submissions
+
+
+class ResultRowInSerializer(serializers.Serializer):
+    """One result as sent (documentation only: rows are validated by the importer, which
+    reports every problem by row and column)."""
+
+    device = serializers.CharField(help_text="Artefact name as in the comparison, e.g. MEMS 1")
+    axis = serializers.ChoiceField(choices=["X", "Y", "Z"])
+    frequency_hz = serializers.FloatField()
+    bench = serializers.CharField(help_text="linear or curvilinear")
+    direction = serializers.CharField(required=False, help_text="vertical, tangential, radial")
+    amplitude_m_s2 = serializers.FloatField(required=False, allow_null=True)
+    sensitivity = serializers.FloatField()
+    unit = serializers.CharField(required=False, help_text="Default: the device's unit")
+    expanded_uncertainty = serializers.CharField(
+        help_text="Number > 0 in the unit of sensitivity, or a string with a % suffix"
+    )
+    coverage_factor = serializers.FloatField(required=False, help_text="Default 2")
+    dof = serializers.FloatField(required=False, allow_null=True)
+    note = serializers.CharField(required=False, max_length=500)
+
+
+class RowsField(serializers.ListField):
+    """A JSON array, passed on untouched: the importer validates each row (formats.md §1)."""
+
+    def to_internal_value(self, data: Any) -> list[Any]:
+        if not isinstance(data, list):
+            self.fail("not_a_list", input_type=type(data).__name__)
+        return data
+
+
+class SubmissionRequestSerializer(serializers.Serializer):
+    results = RowsField(
+        child=ResultRowInSerializer(),
+        help_text="One object per result, keys as the columns of the results table "
+        "(formats.md §1; `lab` is not allowed). Numbers may be JSON numbers or strings.",
+    )
+    submit = serializers.BooleanField(
+        default=True,
+        help_text="true: submit (needs a result for every measurement point); "
+        "false: save as the open draft.",
+    )
+
+
+class UploadRequestSerializer(serializers.Serializer):
+    file = serializers.FileField(help_text="Results table, CSV or XLSX (formats.md §1)")
+    submit = serializers.BooleanField(default=True)
+
+
+class SubmissionSerializer(serializers.ModelSerializer):
+    participant = serializers.CharField(source="participant.code", help_text="Participant code")
+    status = SubmissionStatusField(read_only=True)
+    n_results = serializers.SerializerMethodField()
+
+    class Meta:
+        model = Submission
+        fields = [
+            "participant",
+            "version",
+            "status",
+            "source",
+            "created_at",
+            "submitted_at",
+            "decided_at",
+            "message",
+            "n_results",
+        ]
+
+    def get_n_results(self, obj: Submission) -> int:
+        annotated = getattr(obj, "n_results", None)
+        return annotated if annotated is not None else obj.results.count()
+
+
+class ResultSerializer(serializers.ModelSerializer):
+    device = serializers.CharField(source="measurement_point.device.name")
+    axis = serializers.CharField(source="measurement_point.axis")
+    frequency_hz = serializers.FloatField(source="measurement_point.frequency_hz")
+    bench = serializers.CharField(source="measurement_point.bench")
+    direction = serializers.CharField(source="measurement_point.direction")
+    amplitude_m_s2 = serializers.FloatField(
+        source="measurement_point.amplitude_m_s2", allow_null=True
+    )
+    sensitivity = serializers.FloatField(source="value")
+
+    class Meta:
+        model = Result
+        fields = [
+            "device",
+            "axis",
+            "frequency_hz",
+            "bench",
+            "direction",
+            "amplitude_m_s2",
+            "sensitivity",
+            "unit",
+            "expanded_uncertainty",
+            "coverage_factor",
+            "standard_uncertainty",
+            "dof",
+            "note",
+        ]
+
+
+class SubmissionDetailSerializer(SubmissionSerializer):
+    results = serializers.SerializerMethodField()
+
+    class Meta(SubmissionSerializer.Meta):
+        fields = [*SubmissionSerializer.Meta.fields, "results"]
+
+    @extend_schema_field(ResultSerializer(many=True))
+    def get_results(self, obj: Submission) -> list[dict[str, Any]]:
+        return ResultSerializer(self.context["results"], many=True).data

@@ -1,0 +1,37 @@
+"""``/api/v1/`` routes (formats.md §3: these names are a promise)."""
+
+from django.urls import path
+
+from labs.api import views
+
+app_name = "api"
+
+urlpatterns = [
+    path("comparisons/", views.ComparisonList.as_view(), name="comparison-list"),
+    path("comparisons/<slug:code>/", views.ComparisonDetail.as_view(), name="comparison-detail"),
+    path(
+        "comparisons/<slug:code>/measurands/",
+        views.MeasurandList.as_view(),
+        name="measurand-list",
+    ),
+    path(
+        "comparisons/<slug:code>/template.csv",
+        views.ResultsTemplate.as_view(),
+        name="results-template",
+    ),
+    path(
+        "comparisons/<slug:code>/submissions/",
+        views.SubmissionCollection.as_view(),
+        name="submission-list",
+    ),
+    path(
+        "comparisons/<slug:code>/submissions/upload/",
+        views.SubmissionUpload.as_view(),
+        name="submission-upload",
+    ),
+    path(
+        "comparisons/<slug:code>/submissions/<int:version>/",
+        views.SubmissionDetail.as_view(),
+        name="submission-detail",
+    ),
+]

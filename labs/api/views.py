@@ -1,0 +1,321 @@
+"""API views (formats.md §3): validate input, call one service or selector, serialise.
+
+Errors are raised, never built here: ApplicationError subclasses and DRF's own
+exceptions are turned into ``{"detail", "errors"}`` by
+:func:`proficiency.errors.api_exception_handler`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import django_filters
+from django.conf import settings
+from django.db.models import QuerySet
+from drf_spectacular.types import OpenApiTypes
+from drf_spectacular.utils import OpenApiParameter, OpenApiResponse, extend_schema
+from rest_framework import generics, serializers
+from rest_framework.authentication import SessionAuthentication
+from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
+from rest_framework.permissions import IsAuthenticated
+from rest_framework.renderers import BaseRenderer, JSONRenderer
+from rest_framework.request import Request
+from rest_framework.response import Response
+from rest_framework.views import APIView
+
+from labs.api import serializers as s
+from labs.api.authentication import LabAPIKeyAuthentication
+from labs.api.permissions import (
+    ComparisonAccess,
+    caller_of,
+    comparison_access,
+    comparisons_for,
+    measurement_points,
+    require_participant,
+    submission_in_scope,
+    submission_results,
+    submissions_in_scope,
+)
+from labs.api.throttling import LabAPIKeyRateThrottle, SessionUserRateThrottle
+from labs.importers.values import human_size
+from labs.models import Submission
+from labs.services import submission_from_file, submission_from_records
+from proficiency.errors import ApplicationError, ValidationFailed
+from proficiency.models import ComparisonStatus, MeasurementPoint
+
+#: multipart framing (boundaries, part headers, the submit field) on top of the file itself
+MULTIPART_SLACK_BYTES = 64 * 1024
+
+
+class RequestTooLarge(ApplicationError):
+    """413: refused before the body is read or parsed."""
+
+    status_code = 413
+
+
+def _error(description: str) -> OpenApiResponse:
+    return OpenApiResponse(s.ErrorSerializer, description=description)
+
+
+AUTH_ERRORS = {
+    401: _error("No credentials, or an invalid, revoked or expired API key"),
+    429: _error("Too many requests; retry after the Retry-After header's seconds"),
+}
+NOT_VISIBLE = {404: _error("No such comparison, or not visible to you (also other labs')")}
+SUBMIT_ERRORS = {
+    400: _error("The results were refused; `errors` lists every bad row and field"),
+    403: _error("You coordinate this comparison but are not a participant"),
+    409: _error("The comparison is not open, or its deadline has passed"),
+    413: _error("The request body or the file is too large"),
+}
+CODE = OpenApiParameter(
+    "code", OpenApiTypes.STR, OpenApiParameter.PATH, description="Comparison code"
+)
+
+
+def validated(serializer_class: type[serializers.Serializer], data: Any) -> dict[str, Any]:
+    serializer = serializer_class(data=data)
+    if not serializer.is_valid():
+        raise ValidationFailed(
+            "The request is not valid.", errors=s.as_row_errors(serializer.errors)
+        )
+    return serializer.validated_data
+
+
+def check_content_length(request: Request, limit: int, what: str) -> None:
+    """413 on the declared size alone, before anything reads the body."""
+    try:
+        length = int(request.META.get("CONTENT_LENGTH") or 0)
+    except ValueError:
+        length = 0
+    if length > limit:
+        raise RequestTooLarge(
+            f"The {what} is {human_size(length)}; the limit is {human_size(limit)}. "
+            "Split the results into several drafts, or contact the coordinator."
+        )
+
+
+class ApiView(APIView):
+    authentication_classes = [LabAPIKeyAuthentication, SessionAuthentication]
+    permission_classes = [IsAuthenticated]
+    throttle_classes = [LabAPIKeyRateThrottle, SessionUserRateThrottle]
+
+    def access(self, code: str) -> ComparisonAccess:
+        return comparison_access(caller_of(self.request), code)
+
+
+class ComparisonFilter(django_filters.FilterSet):
+    status = django_filters.ChoiceFilter(choices=ComparisonStatus.choices)
+
+
+@extend_schema(tags=["comparisons"], responses={200: s.ComparisonSerializer, **AUTH_ERRORS})
+class ComparisonList(ApiView, generics.ListAPIView):
+    """Comparisons visible to you: your laboratory's, the ones you coordinate (all for admins)."""
+
+    serializer_class = s.ComparisonSerializer
+    filterset_class = ComparisonFilter
+
+    def get_queryset(self) -> QuerySet[Any]:
+        return comparisons_for(caller_of(self.request)).order_by("-created_at", "code")
+
+
+@extend_schema(
+    tags=["comparisons"],
+    parameters=[CODE],
+    responses={200: s.ComparisonDetailSerializer, **AUTH_ERRORS, **NOT_VISIBLE},
+)
+class ComparisonDetail(ApiView):
+    """Protocol, deadline, status and devices; `participant_code` is your own code."""
+
+    def get(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        return Response(
+            s.ComparisonDetailSerializer(access.comparison, context={"access": access}).data
+        )
+
+
+@extend_schema(
+    tags=["comparisons"],
+    parameters=[CODE],
+    responses={200: s.MeasurementPointSerializer, **AUTH_ERRORS, **NOT_VISIBLE},
+)
+class MeasurandList(ApiView, generics.ListAPIView):
+    """The comparison's measurement points (one result is expected for each)."""
+
+    serializer_class = s.MeasurementPointSerializer
+    filter_backends: list[type] = []
+
+    def get_queryset(self) -> QuerySet[Any]:
+        if getattr(self, "swagger_fake_view", False):  # schema generation: no request
+            return MeasurementPoint.objects.none()
+        return measurement_points(self.access(self.kwargs["code"]).comparison)
+
+
+class CSVRenderer(BaseRenderer):
+    media_type = "text/csv"
+    format = "csv"
+    charset = "utf-8"
+
+    def render(
+        self, data: Any, accepted_media_type: str | None = None, renderer_context: Any = None
+    ) -> bytes:
+        return data
+
+
+class XLSXRenderer(CSVRenderer):
+    media_type = "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet"
+    format = "xlsx"
+    charset = None  # type: ignore[assignment]
+
+
+@extend_schema(
+    tags=["comparisons"],
+    parameters=[
+        CODE,
+        OpenApiParameter("format", OpenApiTypes.STR, enum=["csv", "xlsx"], default="csv"),
+    ],
+    responses={
+        (200, "text/csv"): OpenApiTypes.BINARY,
+        (200, XLSXRenderer.media_type): OpenApiTypes.BINARY,
+        **AUTH_ERRORS,
+        **NOT_VISIBLE,
+    },
+)
+class ResultsTemplate(ApiView):
+    """The results table (formats.md §1) pre-filled with the measurement points; fill in
+    `sensitivity` and `expanded_uncertainty` and upload it."""
+
+    renderer_classes = [CSVRenderer, XLSXRenderer]
+
+    def get(self, request: Request, code: str) -> Response:
+        comparison = self.access(code).comparison
+        fmt = request.accepted_renderer.format
+        body = s.template_table(measurement_points(comparison), format=fmt)
+        filename = f"{comparison.code}-results-template.{fmt}"
+        return Response(body, headers={"Content-Disposition": f'attachment; filename="{filename}"'})
+
+    def finalize_response(self, request: Request, response: Any, *args: Any, **kwargs: Any) -> Any:
+        if response.status_code >= 400:  # errors stay JSON whatever format was asked
+            request.accepted_renderer, request.accepted_media_type = (
+                JSONRenderer(),
+                "application/json",
+            )
+        return super().finalize_response(request, response, *args, **kwargs)
+
+
+class SubmissionFilter(django_filters.FilterSet):
+    status = django_filters.ChoiceFilter(choices=Submission.Status.choices)
+    participant = django_filters.CharFilter(
+        field_name="participant__code", help_text="Participant code"
+    )
+
+
+class SubmissionCollection(ApiView, generics.ListAPIView):
+    """Your laboratory's versions (coordinators: every participant's, by code)."""
+
+    serializer_class = s.SubmissionSerializer
+    filterset_class = SubmissionFilter
+    parser_classes = [JSONParser]
+
+    def get_queryset(self) -> QuerySet[Any]:
+        if getattr(self, "swagger_fake_view", False):
+            return Submission.objects.none()
+        return submissions_in_scope(self.access(self.kwargs["code"]))
+
+    @extend_schema(
+        tags=["submissions"],
+        parameters=[CODE],
+        responses={200: s.SubmissionSerializer, **AUTH_ERRORS, **NOT_VISIBLE},
+    )
+    def get(self, request: Request, *args: Any, **kwargs: Any) -> Response:
+        return super().get(request, *args, **kwargs)
+
+    def initial(self, request: Request, *args: Any, **kwargs: Any) -> None:
+        if request.method == "POST":
+            check_content_length(request, settings.DATA_UPLOAD_MAX_MEMORY_SIZE, "request body")
+        super().initial(request, *args, **kwargs)
+
+    @extend_schema(
+        tags=["submissions"],
+        parameters=[CODE],
+        request=s.SubmissionRequestSerializer,
+        responses={201: s.SubmissionSerializer, **SUBMIT_ERRORS, **AUTH_ERRORS, **NOT_VISIBLE},
+    )
+    def post(self, request: Request, code: str) -> Response:
+        """Submit results as JSON rows (all or nothing); returns the new or updated version."""
+        participant = require_participant(self.access(code))
+        data = validated(s.SubmissionRequestSerializer, request.data)
+        submission = submission_from_records(
+            participant=participant,
+            records=data["results"],
+            source=Submission.Source.API,
+            user=caller_of(request).user,
+            submit=data["submit"],
+        )
+        return Response(s.SubmissionSerializer(submission).data, status=201)
+
+
+@extend_schema(
+    tags=["submissions"],
+    parameters=[CODE],
+    request={"multipart/form-data": s.UploadRequestSerializer},
+    responses={201: s.SubmissionSerializer, **SUBMIT_ERRORS, **AUTH_ERRORS, **NOT_VISIBLE},
+)
+class SubmissionUpload(ApiView):
+    """Submit a results file (CSV or XLSX, formats.md §1), same rules as JSON."""
+
+    parser_classes = [MultiPartParser, FormParser]
+
+    def initial(self, request: Request, *args: Any, **kwargs: Any) -> None:
+        limit = settings.MAX_UPLOAD_BYTES + MULTIPART_SLACK_BYTES
+        check_content_length(request, limit, "upload")
+        super().initial(request, *args, **kwargs)
+
+    def post(self, request: Request, code: str) -> Response:
+        participant = require_participant(self.access(code))
+        data = validated(s.UploadRequestSerializer, request.data)
+        upload = data["file"]
+        if upload.size > settings.MAX_UPLOAD_BYTES:
+            raise RequestTooLarge(
+                f"The file is {human_size(upload.size)}; the limit is "
+                f"{human_size(settings.MAX_UPLOAD_BYTES)}."
+            )
+        submission = submission_from_file(
+            participant=participant,
+            data=upload.read(),
+            filename=upload.name,
+            user=caller_of(request).user,
+            submit=data["submit"],
+        )
+        return Response(s.SubmissionSerializer(submission).data, status=201)
+
+
+@extend_schema(
+    tags=["submissions"],
+    parameters=[
+        CODE,
+        OpenApiParameter("version", OpenApiTypes.INT, OpenApiParameter.PATH),
+        OpenApiParameter(
+            "participant",
+            OpenApiTypes.STR,
+            description="Participant code; required for coordinators, optional for participants",
+        ),
+    ],
+    responses={
+        200: s.SubmissionDetailSerializer,
+        400: _error("?participant is missing"),
+        **AUTH_ERRORS,
+        **NOT_VISIBLE,
+    },
+)
+class SubmissionDetail(ApiView):
+    """One version with its results."""
+
+    def get(self, request: Request, code: str, version: int) -> Response:
+        submission = submission_in_scope(
+            self.access(code),
+            version=version,
+            participant_code=request.query_params.get("participant"),
+        )
+        context = {"results": submission_results(submission)}
+        return Response(s.SubmissionDetailSerializer(submission, context=context).data)
