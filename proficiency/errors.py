@@ -40,6 +40,12 @@ class InvalidTransition(StateConflict):
     """A state machine was asked for a transition it does not allow."""
 
 
+class RequestTooLarge(ApplicationError):
+    """413: a body or file over the limit, refused before it is read or parsed."""
+
+    status_code = 413
+
+
 class NotVisible(ApplicationError):
     """The object does not exist for this user (also for other labs' objects)."""
 

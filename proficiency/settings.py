@@ -157,7 +157,6 @@ REST_FRAMEWORK = {
         "anon": env.str("THROTTLE_ANON", default="60/min"),
     },
 }
-API_KEY_CUSTOM_HEADER = "HTTP_AUTHORIZATION"  # "Authorization: Api-Key <key>" (formats.md §3)
 
 SPECTACULAR_SETTINGS = {
     "TITLE": "Proficiency testing API",

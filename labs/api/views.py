@@ -40,17 +40,11 @@ from labs.api.throttling import LabAPIKeyRateThrottle, SessionUserRateThrottle
 from labs.importers.values import human_size
 from labs.models import Submission
 from labs.services import submission_from_file, submission_from_records
-from proficiency.errors import ApplicationError, ValidationFailed
+from proficiency.errors import RequestTooLarge, ValidationFailed
 from proficiency.models import ComparisonStatus, MeasurementPoint
 
 #: multipart framing (boundaries, part headers, the submit field) on top of the file itself
 MULTIPART_SLACK_BYTES = 64 * 1024
-
-
-class RequestTooLarge(ApplicationError):
-    """413: refused before the body is read or parsed."""
-
-    status_code = 413
 
 
 def _error(description: str) -> OpenApiResponse:
