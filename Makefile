@@ -29,7 +29,7 @@ run: demo
 	$(PY) manage.py runserver $(HOST)
 
 test: $(VENV)/.dev
-	$(PY) -m pytest
+	$(PY) -m pytest -n 2
 
 lint: $(VENV)/.dev
 	$(VENV)/bin/ruff check .
