@@ -92,7 +92,7 @@ def _grid_source(participant: Participant) -> Submission | None:
 def _closed_reason(comparison: Comparison) -> str | None:
     """Why results cannot be stored now, in the service's own words (None when open)."""
     try:
-        services._check_open(comparison)
+        services.submission_window_check(comparison)
     except StateConflict as exc:
         return exc.message
     return None

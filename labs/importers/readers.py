@@ -58,6 +58,13 @@ def read_sheet(
     return read_csv(data, max_rows=max_rows)
 
 
+def _blank_row(cells: Sequence[object]) -> bool:
+    first = cells[0] if cells else None
+    if type(first) is str and first and not first[0].isspace():
+        return False  # the usual row: its first cell is plainly not blank
+    return all(is_blank(cell) for cell in cells)
+
+
 def _split_header(
     records: Iterable[tuple[int, list[object]]], max_rows: int
 ) -> tuple[int, list[object], list[tuple[int, list[object]]]]:
@@ -65,7 +72,7 @@ def _split_header(
     header: tuple[int, list[object]] | None = None
     rows: list[tuple[int, list[object]]] = []
     for number, cells in records:
-        if all(is_blank(cell) for cell in cells):
+        if _blank_row(cells):
             continue
         if header is None:
             header = (number, cells)

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Literal, NamedTuple
 
+from .matching import FrequencyIndex, close
 from .values import CANONICAL_UNIT
 
 LabColumn = Literal["forbidden", "required", "optional"]
@@ -110,10 +110,6 @@ def _norm_device(name: str) -> str:
     return " ".join(name.split()).casefold()
 
 
-def _close(a: float, b: float, rel_tol: float) -> bool:
-    return math.isclose(a, b, rel_tol=rel_tol, abs_tol=0.0)
-
-
 @dataclass(frozen=True, kw_only=True)
 class TableContext:
     """What one comparison allows; every field left as ``None`` allows anything.
@@ -182,35 +178,42 @@ class TableContext:
             return device
         return self._devices.get(_norm_device(device))
 
+    @cached_property
+    def _frequency_index(self) -> FrequencyIndex[float]:
+        allowed = self.frequencies_hz or ()
+        return FrequencyIndex(((f, f) for f in allowed), self.frequency_rel_tol)
+
     def canonical_frequency(self, frequency_hz: float) -> float | None:
+        """The first of ``frequencies_hz`` within the tolerance of ``frequency_hz``."""
         if self.frequencies_hz is None:
             return frequency_hz
-        for allowed in self.frequencies_hz:
-            if _close(allowed, frequency_hz, self.frequency_rel_tol):
-                return allowed
-        return None
+        found = self._frequency_index.find(frequency_hz)
+        return found[0] if found else None
 
     def directions_for(self, bench: str) -> tuple[str, ...]:
         return tuple(self.directions.get(bench, DIRECTIONS))
 
     @cached_property
-    def _point_index(self) -> dict[tuple[str, str, str, str], list[PointKey]]:
-        index: dict[tuple[str, str, str, str], list[PointKey]] = {}
+    def _point_index(self) -> dict[tuple[str, str, str, str], FrequencyIndex[PointKey]]:
+        groups: dict[tuple[str, str, str, str], list[tuple[float, PointKey]]] = {}
         for p in self.points or ():
-            index.setdefault((p.device, p.axis, p.bench, p.direction), []).append(p)
-        return index
+            groups.setdefault((p.device, p.axis, p.bench, p.direction), []).append(
+                (p.frequency_hz, p)
+            )
+        tol = self.frequency_rel_tol
+        return {key: FrequencyIndex(items, tol) for key, items in groups.items()}
 
     def matching_points(self, row: ResultRow | PointKey) -> list[PointKey]:
         """The context's points a row fits; an unset amplitude on either side matches any."""
-        key = (row.device, row.axis, row.bench, row.direction)
-        found = []
-        for p in self._point_index.get(key, ()):
-            if not _close(p.frequency_hz, row.frequency_hz, self.frequency_rel_tol):
-                continue
-            a, b = p.amplitude_m_s2, row.amplitude_m_s2
-            if a is None or b is None or _close(a, b, self.frequency_rel_tol):
-                found.append(p)
-        return found
+        index = self._point_index.get((row.device, row.axis, row.bench, row.direction))
+        if index is None:
+            return []
+        b, tol = row.amplitude_m_s2, self.frequency_rel_tol
+        return [
+            p
+            for p in index.find(row.frequency_hz)
+            if p.amplitude_m_s2 is None or b is None or close(p.amplitude_m_s2, b, tol)
+        ]
 
     def expected_points(self) -> tuple[PointKey, ...]:
         """``points``, or else every device × axis × frequency × (bench, direction)."""
@@ -234,7 +237,10 @@ def missing_points(rows: Iterable[ResultRow], context: TableContext) -> list[Poi
     For a coordinator's table with several labs, call it with one lab's rows.
     """
     expected = context.expected_points()
-    probe = TableContext.from_points(expected, frequency_rel_tol=context.frequency_rel_tol)
+    # Matching reads only the points and the tolerance: a context with points is its own probe.
+    probe = context
+    if context.points is None:
+        probe = TableContext.from_points(expected, frequency_rel_tol=context.frequency_rel_tol)
     covered: set[PointKey] = set()
     for row in rows:
         covered.update(probe.matching_points(row))

@@ -8,16 +8,19 @@ A table that does not fit raises :class:`ImportErrors` listing every problem.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import gc
 import io
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Literal
 
+from .columns import record_columns, sheet_columns, validate_columns
 from .errors import RowError, fatal
 from .readers import read_sheet
 from .schema import COLUMNS, LabColumn, ResultRow, TableContext
-from .validate import cells_to_record, check_header, normalise_name, validate_records
+from .validate import check_header, normalise_name
 from .values import escape_text, format_number, human_size
 
 MAX_BYTES = 5 * 2**20
@@ -45,21 +48,35 @@ def parse_table(
     """
     if len(data) > max_bytes:
         raise fatal(f"the file is {human_size(len(data))}; the limit is {human_size(max_bytes)}")
-    sheet = read_sheet(data, filename=filename, content_type=content_type, max_rows=max_rows)
-    columns = check_header(sheet.header, lab_column=lab_column, row=sheet.header_row)
-    errors = list(sheet.errors)
-    records = []
-    for number, cells in sheet.rows:
-        record, cell_errors = cells_to_record(columns, cells, number)
-        errors.extend(cell_errors)
-        records.append((number, record))
-    return validate_records(
-        records,
-        decimal_comma=sheet.decimal_comma,
-        lab_column=lab_column,
-        context=context,
-        errors=errors,
-    )
+    with _gc_paused():
+        sheet = read_sheet(data, filename=filename, content_type=content_type, max_rows=max_rows)
+        names = check_header(sheet.header, lab_column=lab_column, row=sheet.header_row)
+        columns, numbers, cell_errors = sheet_columns(names, sheet.rows)
+        return validate_columns(
+            columns,
+            numbers,
+            decimal_comma=sheet.decimal_comma,
+            lab_column=lab_column,
+            context=context,
+            errors=[*sheet.errors, *cell_errors],
+        )
+
+
+@contextlib.contextmanager
+def _gc_paused() -> Iterator[None]:
+    """No cyclic garbage collection while a table is read.
+
+    Reading 100,000 rows allocates millions of objects that all stay alive; the
+    collector would walk them again and again for nothing (a third of the time).
+    Reference counting still frees everything; the collector resumes afterwards.
+    """
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if was_enabled:
+            gc.enable()
 
 
 def parse_rows(
@@ -79,21 +96,33 @@ def parse_rows(
         raise fatal(f"{len(rows)} results were given; the limit is {max_rows}")
     errors: list[RowError] = []
     records: list[tuple[int, Mapping[str, object]]] = []
-    for number, item in enumerate(rows, start=1):
-        record, item_errors = _object_to_record(item, number)
-        errors.extend(item_errors)
-        if record is not None:
-            records.append((number, record))
-    return validate_records(records, lab_column=lab_column, context=context, errors=errors)
+    names: dict[object, str] = {}
+    with _gc_paused():
+        for number, item in enumerate(rows, start=1):
+            record, item_errors = _object_to_record(item, number, names)
+            errors.extend(item_errors)
+            if record is not None:
+                records.append((number, record))
+        columns, numbers = record_columns(records)
+        return validate_columns(
+            columns, numbers, lab_column=lab_column, context=context, errors=errors
+        )
 
 
-def _object_to_record(item: object, number: int) -> tuple[dict[str, object] | None, list[RowError]]:
+def _object_to_record(
+    item: object, number: int, names: dict[object, str]
+) -> tuple[dict[str, object] | None, list[RowError]]:
+    """One JSON object as a record; ``names`` remembers each key's column name."""
     if not isinstance(item, Mapping):
         return None, [RowError(number, None, "must be an object whose keys are column names")]
     record: dict[str, object] = {}
     errors = []
     for key, value in item.items():
-        name = normalise_name(key)
+        name = names.get(key) if type(key) is str else None
+        if name is None:
+            name = normalise_name(key)
+            if type(key) is str:
+                names[key] = name
         if name not in COLUMNS:
             errors.append(
                 RowError(number, str(key), f"unknown field; allowed: {', '.join(COLUMNS)}")
