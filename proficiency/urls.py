@@ -13,6 +13,7 @@ urlpatterns = [
     # "/" is a lab member's dashboard, the public landing page for everyone else.
     path("", lab_views.home, name="home"),
     path("", include("labs.urls")),
+    path("", include("proficiency.coordinator_urls")),
     path("accounts/", include("django.contrib.auth.urls")),
     path("admin/", admin.site.urls),
     path("api/v1/", include("labs.api.urls")),

@@ -1,0 +1,232 @@
+"""Server-side charts of the results pages: plain data in, SVG text out (no ORM here).
+
+matplotlib with the Agg canvas and the object-oriented API (``Figure()``, never
+``pyplot``), so nothing is shared between requests or threads.  ``svg.hashsalt``
+and empty metadata make the output byte-stable: the same data gives the same SVG.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from html import escape
+
+import matplotlib
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.colors import LinearSegmentedColormap
+from matplotlib.figure import Figure
+
+matplotlib.use("Agg")  # no display; the canvas is attached explicitly anyway
+
+OWN = "#d63384"  # the reader's own lab: the same colour in every chart
+LAB = "#1f3a5f"
+BAND = "#9ec5fe"
+BAD = "#dc3545"
+SERIES = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#17becf")
+RC = {
+    "svg.hashsalt": "pt-charts",
+    "svg.fonttype": "none",  # text stays text: searchable, selectable, smaller
+    "font.family": "DejaVu Sans",
+    "font.size": 9,
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+}
+_SIZE = re.compile(r'width="([\d.]+)pt" height="[\d.]+pt"')
+EN_CMAP = LinearSegmentedColormap.from_list("en", ["#d1e7dd", "#fff3cd", "#f8d7da", "#dc3545"])
+
+
+@dataclass(frozen=True)
+class Series:
+    """One line of the sensitivity-vs-frequency chart."""
+
+    label: str
+    x: Sequence[float]
+    y: Sequence[float]
+    expanded_uncertainty: Sequence[float]
+
+
+def _figure(width: float, height: float) -> Figure:
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _svg(fig: Figure, label: str | None = None) -> str:
+    buffer = io.StringIO()
+    with matplotlib.rc_context(RC):
+        fig.savefig(buffer, format="svg", metadata={"Date": None, "Creator": None})
+    svg = buffer.getvalue()
+    # Inline SVG in an HTML page: drop the XML prologue and the DOCTYPE, keep <svg ...>,
+    # and let the viewBox scale it to its container (no fixed width in points).
+    svg = svg[svg.index("<svg") :]
+    title = label or (fig.axes[0].get_title() if fig.axes else "chart")
+    width = _SIZE.search(svg)
+    style = f"width:100%;height:auto;max-width:{width.group(1) if width else '100%'}pt"
+    attrs = f'class="pt-chart" style="{style}" role="img" aria-label="{escape(title)}"'
+    return _SIZE.sub(attrs, svg, count=1)
+
+
+def _with_rc(func):  # type: ignore[no-untyped-def]
+    """Build the figure inside the chart style (fonts, spines) as well as save it."""
+
+    def wrapper(*args, **kwargs):  # type: ignore[no-untyped-def]
+        with matplotlib.rc_context(RC):
+            return func(*args, **kwargs)
+
+    wrapper.__doc__, wrapper.__name__ = func.__doc__, func.__name__
+    return wrapper
+
+
+@_with_rc
+def point_chart(
+    labels: Sequence[str],
+    values: Sequence[float],
+    expanded_uncertainties: Sequence[float],
+    *,
+    assigned_value: float,
+    assigned_expanded_uncertainty: float,
+    title: str,
+    unit: str,
+    highlight: str | None = None,
+) -> str:
+    """The labs' results with error bars (U) against x_pt and its ±U band, one point."""
+    fig = _figure(5.6, 3.4)
+    ax = fig.add_subplot()
+    x = np.arange(len(labels))
+    lo, hi = (
+        assigned_value - assigned_expanded_uncertainty,
+        assigned_value + assigned_expanded_uncertainty,
+    )
+    ax.axhspan(lo, hi, color=BAND, alpha=0.45, label="x_pt ± U(x_pt)")
+    ax.axhline(assigned_value, color=LAB, lw=1, ls="--", label="x_pt")
+    for i, label in enumerate(labels):
+        colour = OWN if label == highlight else LAB
+        ax.errorbar(x[i], values[i], yerr=expanded_uncertainties[i], fmt="o", ms=4,
+                    color=colour, ecolor=colour, capsize=3, lw=1)  # fmt: skip
+    ax.set_xticks(x, labels, rotation=90 if len(labels) > 14 else 0)
+    _mark_own_tick(ax, labels, highlight)
+    ax.set_xlabel("Participant")
+    ax.set_ylabel(f"Sensitivity ({_unit(unit)})")
+    ax.set_title(title)
+    fig.legend(loc="outside lower center", ncols=2, frameon=False)
+    return _svg(fig)
+
+
+def _mark_own_tick(ax, labels: Sequence[str], highlight: str | None) -> None:  # type: ignore[no-untyped-def]
+    for tick, label in zip(ax.get_xticklabels(), labels, strict=False):
+        if label == highlight:
+            tick.set_color(OWN)
+            tick.set_fontweight("bold")
+
+
+@_with_rc
+def en_chart(
+    labels: Sequence[str],
+    en: Sequence[float],
+    *,
+    title: str,
+    limit: float = 1.0,
+    highlight: str | None = None,
+) -> str:
+    """Signed En per lab as bars, with the ±limit lines (|En| > limit: red)."""
+    fig = _figure(5.6, 3.0)
+    ax = fig.add_subplot()
+    x = np.arange(len(labels))
+    values = np.asarray(en, dtype=float)
+    colours = [
+        OWN if lab == highlight else (BAD if abs(v) > limit else LAB)
+        for lab, v in zip(labels, values, strict=True)
+    ]
+    ax.bar(x, values, color=colours, width=0.6)
+    for y in (limit, -limit):
+        ax.axhline(y, color=BAD, lw=1, ls="--")
+    ax.axhline(0, color="black", lw=0.6)
+    top = max(1.5 * limit, float(np.nanmax(np.abs(values))) * 1.1 if values.size else 0)
+    ax.set_ylim(-top, top)
+    ax.set_xticks(x, labels, rotation=90 if len(labels) > 14 else 0)
+    _mark_own_tick(ax, labels, highlight)
+    ax.set_xlabel("Participant")
+    ax.set_ylabel("En")
+    ax.set_title(title)
+    return _svg(fig)
+
+
+@_with_rc
+def frequency_chart(
+    series: Sequence[Series],
+    *,
+    title: str,
+    unit: str,
+    nominal: float | None = None,
+    nominal_half_width: float | None = None,
+) -> str:
+    """Sensitivity against frequency, one line per series with U error bars (study Fig. 8/10).
+
+    The nominal value and its tolerance are drawn as a band when given."""
+    fig = _figure(5.2, 3.6)
+    ax = fig.add_subplot()
+    if nominal is not None:
+        if nominal_half_width:
+            ax.axhspan(nominal - nominal_half_width, nominal + nominal_half_width,
+                       color="#e9ecef", label="nominal ± tolerance")  # fmt: skip
+        ax.axhline(nominal, color="#6c757d", lw=0.8, ls=":", label="nominal")
+    shift = _offsets(series)
+    for i, s in enumerate(series):
+        x = np.asarray(s.x, dtype=float) + shift[i]
+        ax.errorbar(x, s.y, yerr=s.expanded_uncertainty, fmt="-o", ms=4, capsize=3, lw=1,
+                    color=SERIES[i % len(SERIES)], label=s.label)  # fmt: skip
+    ax.set_xlabel("Frequency (Hz)")
+    ax.set_ylabel(f"Sensitivity ({_unit(unit)})")
+    ax.set_title(title)
+    fig.legend(loc="outside lower center", ncols=5, frameon=False)
+    return _svg(fig)
+
+
+def _offsets(series: Sequence[Series]) -> list[float]:
+    """Small x shifts (1.2 % of the span each) so that overlapping error bars stay readable."""
+    xs = [float(x) for s in series for x in s.x]
+    span = (max(xs) - min(xs)) if xs else 1.0
+    n = len(series)
+    return [0.012 * (span or 1.0) * (i - (n - 1) / 2) for i in range(n)]
+
+
+def _unit(unit: str) -> str:
+    return unit.replace("^2", "²")
+
+
+@_with_rc
+def heatmap(
+    levels: Sequence[str],
+    en: Sequence[Sequence[float]],
+    *,
+    title: str,
+    limit: float = 1.0,
+    highlight: str | None = None,
+) -> str:
+    """Pairwise En between levels as a heat map with the values printed in the cells."""
+    n = len(levels)
+    size = min(9.0, 1.9 + 0.45 * n)
+    fig = _figure(size + 0.8, size)
+    ax = fig.add_subplot()
+    matrix = np.asarray(en, dtype=float).reshape(n, n)
+    top = max(2.0 * limit, float(np.nanmax(matrix)) if matrix.size else 0.0)
+    image = ax.imshow(matrix, cmap=EN_CMAP, vmin=0.0, vmax=top)
+    small = n > 12
+    for (i, j), v in np.ndenumerate(matrix):
+        if i != j and math.isfinite(v):
+            ax.text(j, i, f"{v:.2f}", ha="center", va="center", fontsize=6 if small else 8,
+                    fontweight="bold" if v > limit else "normal")  # fmt: skip
+    ax.set_xticks(range(n), levels, rotation=90 if n > 6 else 0)
+    ax.set_yticks(range(n), levels)
+    for ticks in (ax.get_xticklabels(), ax.get_yticklabels()):
+        for tick, label in zip(ticks, levels, strict=False):
+            if label == highlight:
+                tick.set_color(OWN)
+                tick.set_fontweight("bold")
+    ax.spines[:].set_visible(False)
+    fig.colorbar(image, ax=ax, shrink=0.8, label=f"En (incompatible > {limit:g})")
+    return _svg(fig, label=f"En matrix: {title}")

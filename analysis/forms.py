@@ -1,0 +1,92 @@
+"""GET forms of the results pages: score filters, the chosen measurement point, the factor."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from django import forms
+
+from labs.importers.values import format_number
+from proficiency.forms import BootstrapMixin
+from proficiency.models import Axis, Bench, Comparison, Direction, MeasurementPoint
+
+ALL = [("", "All")]
+FACTORS = [
+    ("bench", "Bench (linear vs curvilinear)"),
+    ("axis", "Axis (X, Y, Z)"),
+    ("direction", "Direction"),
+    ("frequency", "Frequency"),
+    ("device", "Device"),
+    ("lab", "Laboratory (one measurement point)"),
+]
+
+
+def point_choice_label(p: MeasurementPoint) -> str:
+    return (
+        f"{p.device.name} · {p.axis} · {format_number(p.frequency_hz)} Hz · {p.bench} {p.direction}"
+    )
+
+
+class ScoreFilterForm(BootstrapMixin, forms.Form):
+    """Score filters (GET); every value is checked against the comparison's own levels."""
+
+    device = forms.ChoiceField(required=False)
+    axis = forms.ChoiceField(required=False, choices=ALL + list(Axis.choices))
+    frequency_hz = forms.ChoiceField(required=False, label="Frequency (Hz)")
+    bench = forms.ChoiceField(required=False, choices=ALL + list(Bench.choices))
+    direction = forms.ChoiceField(required=False, choices=ALL + list(Direction.choices))
+    lab = forms.ChoiceField(required=False, label="Participant")
+
+    def __init__(self, data: Any, *, comparison: Comparison, lab_codes: list[str]) -> None:
+        super().__init__(data)
+        points = comparison.measurement_points
+        devices = comparison.devices.order_by("name").values_list("name", flat=True)
+        freqs = sorted(set(points.values_list("frequency_hz", flat=True)))
+        self.fields["device"].choices = ALL + [(d, d) for d in devices]
+        self.fields["frequency_hz"].choices = ALL + [(repr(f), format_number(f)) for f in freqs]
+        self.fields["lab"].choices = ALL + [(c, c) for c in lab_codes]
+
+    def filters(self) -> dict[str, str]:
+        """The valid filters as ``run_scores`` takes them (an invalid form filters nothing)."""
+        if not self.is_valid():
+            return {}
+        return {k: v for k, v in self.cleaned_data.items() if v}
+
+
+class PointForm(BootstrapMixin, forms.Form):
+    point = forms.TypedChoiceField(coerce=int, required=False, label="Measurement point")
+
+    def __init__(self, data: Any, *, points: list[MeasurementPoint]) -> None:
+        super().__init__(data)
+        self.fields["point"].choices = [(p.pk, point_choice_label(p)) for p in points]
+        self.points = {p.pk: p for p in points}
+
+    def chosen(self) -> MeasurementPoint | None:
+        """The chosen point, else the first one (None when there is no point)."""
+        pk = self.cleaned_data.get("point") if self.is_valid() else None
+        return self.points.get(pk) if pk else next(iter(self.points.values()), None)
+
+
+class CompatibilityForm(ScoreFilterForm):
+    factor = forms.ChoiceField(choices=FACTORS, required=False)
+    point = forms.TypedChoiceField(
+        coerce=int, required=False, label="Point (for the laboratory matrix)"
+    )
+
+    def __init__(self, data: Any, *, comparison: Comparison, points: list[MeasurementPoint]):
+        super().__init__(data, comparison=comparison, lab_codes=[])
+        del self.fields["lab"]
+        self.fields["point"].choices = [(p.pk, point_choice_label(p)) for p in points]
+        self.points = {p.pk: p for p in points}
+
+    def chosen_factor(self) -> str:
+        return (self.cleaned_data.get("factor") if self.is_valid() else "") or "bench"
+
+    def point_filters(self) -> dict[str, str]:
+        """The keys of the chosen point (default: the first) for ``lab_matrices``."""
+        pk = self.cleaned_data.get("point") if self.is_valid() else None
+        p = self.points.get(pk) if pk else next(iter(self.points.values()), None)
+        if p is None:
+            return {}
+        return {"device": p.device.name, "axis": p.axis, "frequency_hz": repr(p.frequency_hz),
+                "bench": p.bench, "direction": p.direction}  # fmt: skip

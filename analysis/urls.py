@@ -1,0 +1,32 @@
+"""Analysis and results pages; included by ``proficiency.coordinator_urls`` (namespace
+``coordinator``).  The results views serve the coordinator and, after publication, the
+participants (``lab_*`` names under ``/results/``)."""
+
+from django.urls import path
+
+from analysis import views
+
+C = "coordinator/<slug:code>/"
+P = "results/<slug:code>/"
+COORD = {"audience": views.COORDINATOR}
+LAB = {"audience": views.PARTICIPANT}
+
+urlpatterns = [
+    path(C + "analysis/run/", views.run_start, name="run_start"),
+    path(C + "analysis/runs/", views.runs, name="runs"),
+    path(C + "analysis/runs/<int:pk>/", views.run_detail, name="run"),
+    path(C + "analysis/runs/<int:pk>/progress/", views.run_progress, name="run_progress"),
+    path(C + "publish/", views.publish, name="publish"),
+]
+
+for prefix, base, audience in (("", C, COORD), ("lab_", P, LAB)):
+    urlpatterns += [
+        path(base + "results/" if base == C else base, views.results, audience,
+             name=prefix + "results"),
+        path(base + "scores/", views.scores, audience, name=prefix + "scores"),
+        path(base + "scores.<str:fmt>", views.scores_download, audience,
+             name=prefix + "scores_download"),
+        path(base + "charts/", views.charts_page, audience, name=prefix + "charts"),
+        path(base + "compatibility/", views.compatibility, audience,
+             name=prefix + "compatibility"),
+    ]  # fmt: skip

@@ -1,0 +1,390 @@
+"""Analysis and results web pages (issue 5): run button, live progress, runs list, results
+(assigned values, scores with downloads, charts, compatibility heat maps) and publication.
+
+The results pages serve two audiences with the same views and templates:
+
+* ``coordinator`` (``/coordinator/<code>/results/...``): any successful run (``?run=``);
+* ``participant`` (``/results/<code>/...``): only after publication, the current run,
+  laboratories by code only, the reader's own code highlighted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from django.contrib import messages
+from django.contrib.auth.decorators import login_required
+from django.core.paginator import Page, Paginator
+from django.db.models import Count, IntegerField, OuterRef, Subquery
+from django.http import Http404, HttpRequest, HttpResponse
+from django.shortcuts import get_object_or_404, redirect, render
+from django.urls import reverse
+from django.views.decorators.http import require_GET, require_POST
+
+from analysis import charts
+from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
+from analysis.models import AnalysisRun, AssignedValue, Score
+from analysis.selectors import current_run, lab_matrices, run_matrices, run_scores
+from analysis.services import analysis_run_start
+from labs.selectors import participant_for_user
+from proficiency.coordinator_views import POINT_ORDER, coordinated
+from proficiency.errors import ApplicationError, NotVisible
+from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
+from proficiency.services import comparison_publish
+
+COORDINATOR, PARTICIPANT = "coordinator", "participant"
+R = AnalysisRun.Status
+FLAG_CLASS = {"satisfactory": "text-bg-success", "warning": "text-bg-warning",
+              "action": "text-bg-danger", "not scored": "text-bg-secondary"}  # fmt: skip
+CONTENT_TYPES = {
+    "csv": "text/csv; charset=utf-8",
+    "xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet",
+}
+SCORE_COLUMNS = [
+    "lab", "device", "axis", "frequency_hz", "bench", "direction", "sensitivity", "unit",
+    "expanded_uncertainty", "coverage_factor", "assigned_value", "assigned_standard_uncertainty",
+    "d", "d_percent", "en", "zeta", "z", "z_prime", "flag", "z_flag",
+]  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Viewer:
+    """Who reads a results page: the comparison, the run shown, the own code to highlight."""
+
+    comparison: Comparison
+    run: AnalysisRun | None
+    audience: str
+    own_code: str | None = None
+
+    @property
+    def is_coordinator(self) -> bool:
+        return self.audience == COORDINATOR
+
+    def url(self, page: str) -> str:
+        prefix = "" if self.is_coordinator else "lab_"
+        url = reverse(f"coordinator:{prefix}{page}", args=[self.comparison.code])
+        current = current_run(self.comparison)
+        if self.is_coordinator and self.run and current and self.run.pk != current.pk:
+            url += f"?run={self.run.pk}"
+        return url
+
+    def nav(self) -> list[tuple[str, str, str]]:
+        pages = [("results", "Assigned values"), ("scores", "Scores"), ("charts", "Charts"),
+                 ("compatibility", "Compatibility")]  # fmt: skip
+        return [(page, label, self.url(page)) for page, label in pages]
+
+
+def _viewer(request: HttpRequest, code: str, audience: str) -> Viewer:
+    if audience == COORDINATOR:
+        comparison = coordinated(request, code)
+        return Viewer(comparison, _chosen_run(comparison, request.GET.get("run", "")), audience)
+    try:
+        participant = participant_for_user(code=code, user=request.user)
+    except NotVisible as exc:
+        raise Http404(exc.message) from None
+    comparison = participant.comparison
+    if comparison.status != ComparisonStatus.PUBLISHED:
+        raise Http404(f"The results of {code} are not published yet.")
+    return Viewer(comparison, current_run(comparison), audience, own_code=participant.code)
+
+
+def _chosen_run(comparison: Comparison, run_id: str) -> AnalysisRun | None:
+    if not run_id.isdigit():
+        return current_run(comparison)
+    runs = comparison.analysis_runs.filter(status=R.SUCCEEDED)
+    return get_object_or_404(runs, pk=int(run_id))
+
+
+def _render(request: HttpRequest, viewer: Viewer, page: str, context: dict) -> HttpResponse:
+    base = {"viewer": viewer, "comparison": viewer.comparison, "run": viewer.run, "page": page,
+            "current": current_run(viewer.comparison)}  # fmt: skip
+    if viewer.run is None:
+        return render(request, "analysis/no_results.html", base)
+    return render(request, f"analysis/{page}.html", base | context)
+
+
+def _page(request: HttpRequest, items, per_page: int) -> Page:  # type: ignore[no-untyped-def]
+    return Paginator(items, per_page).get_page(request.GET.get("page"))
+
+
+# --- runs ---------------------------------------------------------------------------------
+
+
+@login_required
+@require_POST
+def run_start(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    try:
+        run = analysis_run_start(comparison=comparison, user=request.user)
+    except ApplicationError as exc:
+        messages.error(request, exc.message)
+        return redirect("coordinator:comparison", code=code)
+    return redirect("coordinator:run", code=code, pk=run.pk)
+
+
+@login_required
+@require_GET
+def runs(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    context = {
+        "comparison": comparison,
+        "runs": _page(request, comparison.analysis_runs.select_related("created_by"), 25),
+        "current": current_run(comparison),
+    }
+    return render(request, "analysis/runs.html", context)
+
+
+def _run(request: HttpRequest, code: str, pk: int) -> AnalysisRun:
+    comparison = coordinated(request, code)
+    return get_object_or_404(comparison.analysis_runs.select_related("comparison"), pk=pk)
+
+
+@login_required
+@require_GET
+def run_detail(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+    run = _run(request, code, pk)
+    context = {"comparison": run.comparison, "run": run, "current": current_run(run.comparison)}
+    return render(request, "analysis/run.html", context)
+
+
+@login_required
+@require_GET
+def run_progress(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+    """The progress partial, polled by htmx: reads the run row, never the Celery backend."""
+    run = _run(request, code, pk)
+    context = {"comparison": run.comparison, "run": run, "current": current_run(run.comparison)}
+    return render(request, "analysis/_progress.html", context)
+
+
+@login_required
+@require_POST
+def publish(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    if current_run(comparison) is None:
+        messages.error(request, f"{code} has no successful analysis run to publish.")
+        return redirect("coordinator:comparison", code=code)
+    try:
+        comparison_publish(comparison=comparison, user=request.user)
+    except ApplicationError as exc:
+        messages.error(request, exc.message)
+    else:
+        messages.success(request, f"{code} is published; the participants were told by e-mail.")
+    return redirect("coordinator:results", code=code)
+
+
+# --- results pages (both audiences) -------------------------------------------------------
+
+
+def _assigned(run: AnalysisRun):  # type: ignore[no-untyped-def]
+    n = (
+        Score.objects.filter(run=run, result__measurement_point=OuterRef("measurement_point"))
+        .values("run").annotate(c=Count("pk")).values("c")
+    )  # fmt: skip
+    return (
+        AssignedValue.objects.filter(run=run)
+        .select_related("measurement_point__device")
+        .annotate(n_results=Subquery(n, output_field=IntegerField()))
+        .order_by(*POINT_ORDER)
+    )
+
+
+def _bench_rows(run: AnalysisRun) -> list[dict]:
+    """Linear vs curvilinear per device and axis (the study's Table 2, here for all labs)."""
+    rows = []
+    for m in run_matrices(run, "bench", {}):
+        at = {level: i for i, level in enumerate(m.levels)}
+        if not {"linear", "curvilinear"} <= at.keys():
+            continue
+        i, j = at["linear"], at["curvilinear"]
+        rows.append({"device": m.group.get("device"), "axis": m.group.get("axis"),
+                     "linear": (m.values[i], m.expanded_uncertainties[i]),
+                     "curvilinear": (m.values[j], m.expanded_uncertainties[j]),
+                     "en": m.en[i][j]})  # fmt: skip
+    return rows
+
+
+@login_required
+@require_GET
+def results(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+    viewer = _viewer(request, code, audience)
+    if viewer.run is None:
+        return _render(request, viewer, "results", {})
+    c = viewer.comparison
+    context = {
+        "assigned": _page(request, _assigned(viewer.run), 100),
+        "bench_rows": _bench_rows(viewer.run),
+        "may_publish": viewer.is_coordinator and c.status == ComparisonStatus.ANALYSED
+        and viewer.run == current_run(c),
+    }  # fmt: skip
+    return _render(request, viewer, "results", context)
+
+
+def _lab_codes(viewer: Viewer) -> list[str]:
+    return list(viewer.comparison.participants.order_by("code").values_list("code", flat=True))
+
+
+@login_required
+@require_GET
+def scores(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+    viewer = _viewer(request, code, audience)
+    if viewer.run is None:
+        return _render(request, viewer, "scores", {})
+    form = ScoreFilterForm(request.GET, comparison=viewer.comparison, lab_codes=_lab_codes(viewer))
+    page = _page(request, run_scores(viewer.run, form.filters()), 50)
+    own = viewer.own_code
+    rows = [{"s": s, "flag_class": FLAG_CLASS.get(s.flag, ""),
+             "own": s.result.submission.participant.code == own} for s in page]  # fmt: skip
+    query = request.GET.copy()
+    query.pop("page", None)
+    context = {"form": form, "page_obj": page, "rows": rows, "query": query.urlencode()}
+    return _render(request, viewer, "scores", context)
+
+
+def _score_records(run: AnalysisRun, filters: dict[str, str]) -> list[dict]:
+    assigned = dict(
+        (pid, (v, u)) for pid, v, u in run.assigned_values.values_list(
+            "measurement_point_id", "value", "standard_uncertainty")
+    )  # fmt: skip
+    records = []
+    for s in run_scores(run, filters).iterator(chunk_size=5000):
+        r, p = s.result, s.result.measurement_point
+        x_pt, u_pt = assigned.get(p.pk, (None, None))
+        records.append({
+            "lab": r.submission.participant.code, "device": p.device.name, "axis": p.axis,
+            "frequency_hz": p.frequency_hz, "bench": p.bench, "direction": p.direction,
+            "sensitivity": r.value, "unit": r.unit, "expanded_uncertainty": r.expanded_uncertainty,
+            "coverage_factor": r.coverage_factor, "assigned_value": x_pt,
+            "assigned_standard_uncertainty": u_pt, "d": s.d, "d_percent": s.d_percent,
+            "en": s.en, "zeta": s.zeta, "z": s.z, "z_prime": s.z_prime, "flag": s.flag,
+            "z_flag": s.z_flag,
+        })  # fmt: skip
+    return records
+
+
+@login_required
+@require_GET
+def scores_download(request: HttpRequest, code: str, fmt: str, audience: str) -> HttpResponse:
+    """The (filtered) scores as CSV or XLSX; formula-like cells are escaped by write_table."""
+    from labs.importers import write_table
+
+    if fmt not in CONTENT_TYPES:
+        raise Http404("Scores come as .csv or .xlsx.")
+    viewer = _viewer(request, code, audience)
+    if viewer.run is None:
+        raise Http404(f"{code} has no analysed results yet.")
+    form = ScoreFilterForm(request.GET, comparison=viewer.comparison, lab_codes=_lab_codes(viewer))
+    records = _score_records(viewer.run, form.filters())
+    data = write_table(records, format=fmt, columns=SCORE_COLUMNS)  # type: ignore[arg-type]
+    response = HttpResponse(data, content_type=CONTENT_TYPES[fmt])
+    name = f"{viewer.comparison.code}-scores-run{viewer.run.pk}.{fmt}"
+    response["Content-Disposition"] = f'attachment; filename="{name}"'
+    return response
+
+
+def _run_points(run: AnalysisRun) -> list[MeasurementPoint]:
+    return [a.measurement_point for a in _assigned(run)]
+
+
+def _point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str]:
+    assert viewer.run is not None
+    av = viewer.run.assigned_values.get(measurement_point=point)
+    found = list(run_scores(viewer.run, {}).filter(result__measurement_point=point))
+    labels = [s.result.submission.participant.code for s in found]
+    title = point_choice_label(point)
+    return {
+        "point": charts.point_chart(
+            labels, [s.result.value for s in found],
+            [s.result.expanded_uncertainty for s in found], assigned_value=av.value,
+            assigned_expanded_uncertainty=2 * av.standard_uncertainty, title=title,
+            unit=point.device.unit, highlight=viewer.own_code,
+        ),
+        "en": charts.en_chart(labels, [s.en for s in found], title=f"En · {title}",
+                              limit=viewer.comparison.en_limit, highlight=viewer.own_code),
+    }  # fmt: skip
+
+
+def _frequency_charts(viewer: Viewer) -> list[str]:
+    """Per device, sensitivity vs frequency per axis: the run's frequency matrices (§3 means)."""
+    assert viewer.run is not None
+    by_device: dict[str, list[charts.Series]] = {}
+    for m in run_matrices(viewer.run, "frequency", {}):
+        series = charts.Series(str(m.group.get("axis", "")), [float(f) for f in m.levels],
+                               m.values, m.expanded_uncertainties)  # fmt: skip
+        by_device.setdefault(str(m.group.get("device", "")), []).append(series)
+    devices = {d.name: d for d in viewer.comparison.devices.all()}
+    out = []
+    for name, series in sorted(by_device.items()):
+        d = devices.get(name)
+        nominal = d.nominal_sensitivity if d else None
+        half = None
+        if d and nominal and d.tolerance:
+            half = nominal * d.tolerance / 100 if d.tolerance_relative else d.tolerance
+        out.append(charts.frequency_chart(
+            series, title=f"{name}: mean of all labs per frequency", unit=d.unit if d else "",
+            nominal=nominal, nominal_half_width=half,
+        ))  # fmt: skip
+    return out
+
+
+@login_required
+@require_GET
+def charts_page(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+    viewer = _viewer(request, code, audience)
+    if viewer.run is None:
+        return _render(request, viewer, "charts", {})
+    form = PointForm(request.GET, points=_run_points(viewer.run))
+    point = form.chosen()
+    context = {
+        "form": form,
+        "point": point,
+        "point_charts": _point_charts(viewer, point) if point else {},
+        "frequency_charts": _frequency_charts(viewer),
+    }
+    return _render(request, viewer, "charts", context)
+
+
+def _matrix_view(title: str, m, viewer: Viewer) -> dict:  # type: ignore[no-untyped-def]
+    levels = [str(v) if not isinstance(v, float) else f"{v:g} Hz" for v in m.levels]
+    values = getattr(m, "values", None) or list(m.value)
+    big_u = getattr(m, "expanded_uncertainties", None) or list(m.expanded_uncertainty)
+    svg = charts.heatmap(levels, m.en, title=title, limit=viewer.comparison.en_limit,
+                         highlight=viewer.own_code)  # fmt: skip
+    return {"title": title, "svg": svg, "incompatible": int(m.incompatible_pairs),
+            "levels": list(zip(levels, values, big_u, strict=True))}  # fmt: skip
+
+
+def _matrices(viewer: Viewer, form: CompatibilityForm) -> tuple[list, str]:
+    factor = form.chosen_factor()
+    if factor == "lab":
+        try:
+            found = lab_matrices(viewer.comparison, form.point_filters())
+        except ApplicationError as exc:
+            return [], exc.message
+        return [(", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
+                           for k, v in m.group.items()), m) for m in found], ""  # fmt: skip
+    assert viewer.run is not None
+    filters = {k: v for k, v in form.filters().items() if k != "lab"}
+    return [(m.group_key, m) for m in run_matrices(viewer.run, factor, filters)], ""
+
+
+@login_required
+@require_GET
+def compatibility(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+    viewer = _viewer(request, code, audience)
+    if viewer.run is None:
+        return _render(request, viewer, "compatibility", {})
+    form = CompatibilityForm(request.GET, comparison=viewer.comparison,
+                             points=_run_points(viewer.run))  # fmt: skip
+    found, error = _matrices(viewer, form)
+    page = _page(request, found, 6)
+    query = request.GET.copy()
+    query.pop("page", None)
+    context = {
+        "form": form,
+        "factor": form.chosen_factor(),
+        "error": error,
+        "page_obj": page,
+        "matrices": [_matrix_view(title, m, viewer) for title, m in page],
+        "query": query.urlencode(),
+    }
+    return _render(request, viewer, "compatibility", context)

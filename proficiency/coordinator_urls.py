@@ -1,0 +1,36 @@
+"""Coordinator web pages under ``/coordinator/`` and the participants' published results
+under ``/results/`` (both in the ``coordinator`` namespace; analysis pages from
+``analysis.urls``)."""
+
+from django.urls import include, path
+
+from proficiency import coordinator_views as views
+
+app_name = "coordinator"
+
+C = "coordinator/<slug:code>/"
+
+urlpatterns = [
+    path("coordinator/", views.dashboard, name="dashboard"),
+    path("coordinator/new/", views.comparison_create, name="create"),
+    path(C, views.comparison_detail, name="comparison"),
+    path(C + "edit/", views.comparison_edit, name="edit"),
+    path(C + "status/", views.comparison_status, name="status"),
+    path(C + "devices/new/", views.device_add, name="device_add"),
+    path(C + "points/generate/", views.points_generate, name="points_generate"),
+    path(C + "points/<int:pk>/", views.point_edit, name="point_edit"),
+    path(C + "participants/invite/", views.participants_invite, name="invite"),
+    path(
+        C + "participants/<str:participant>/reference/",
+        views.participant_reference,
+        name="reference",
+    ),
+    path(C + "review/", views.review, name="review"),
+    path(
+        C + "review/<str:participant>/v<int:version>/",
+        views.submission_review,
+        name="submission",
+    ),
+    path(C + "review/results/<int:pk>/check/", views.result_check, name="check"),
+    path("", include("analysis.urls")),
+]

@@ -1,0 +1,364 @@
+"""Coordinator web pages (issue 5): dashboard, comparison setup, invitations, review.
+
+Thin views: find the comparison the user coordinates (404 for anyone else, also for the
+coordinator of another comparison), call one service, render.  The analysis and results
+pages live in ``analysis.views``.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections import Counter, defaultdict
+
+from django.contrib import messages
+from django.contrib.auth.decorators import login_required
+from django.db import transaction
+from django.db.models import Count, OuterRef, QuerySet, Subquery
+from django.http import Http404, HttpRequest, HttpResponse
+from django.shortcuts import get_object_or_404, redirect, render
+from django.views.decorators.http import require_GET, require_http_methods, require_POST
+
+from labs.models import Participant, Result, Submission
+from labs.review import submission_decide, submission_request_check
+from labs.selectors import current_submissions
+from labs.services import participant_add
+from proficiency import protocols
+from proficiency.errors import ApplicationError
+from proficiency.forms import (
+    ComparisonCreateForm,
+    ComparisonForm,
+    DecisionForm,
+    DeviceForm,
+    InviteForm,
+    PointGridForm,
+    PointOverrideForm,
+)
+from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
+from proficiency.services import (
+    comparison_allowed_transitions,
+    comparison_apply_template,
+    comparison_transition,
+    measurement_points_generate,
+)
+
+St = Submission.Status
+
+# --- who may see what ---------------------------------------------------------------------
+
+
+def coordinated_comparisons(user) -> QuerySet[Comparison]:  # type: ignore[no-untyped-def]
+    """Comparisons the user coordinates; a superuser coordinates them all."""
+    if user.is_superuser:
+        return Comparison.objects.all()
+    return Comparison.objects.filter(coordinators=user)
+
+
+def coordinated(request: HttpRequest, code: str) -> Comparison:
+    """The comparison ``code`` if the user coordinates it; 404 otherwise (no existence leak)."""
+    comparison = coordinated_comparisons(request.user).filter(code=code).first()
+    if comparison is None:
+        raise Http404(f"No comparison {code!r} that you coordinate.")
+    return comparison
+
+
+def _may_create(user) -> bool:  # type: ignore[no-untyped-def]
+    return user.has_perm("proficiency.add_comparison")
+
+
+def _latest_status(participants: QuerySet[Participant]) -> QuerySet[Participant]:
+    latest = Submission.objects.filter(participant=OuterRef("pk")).order_by("-version")
+    return participants.annotate(
+        latest_status=Subquery(latest.values("status")[:1]),
+        latest_version=Subquery(latest.values("version")[:1]),
+        latest_results=Subquery(latest.annotate(n=Count("results")).values("n")[:1]),
+    )
+
+
+# --- dashboard and settings ---------------------------------------------------------------
+
+
+@login_required
+@require_GET
+def dashboard(request: HttpRequest) -> HttpResponse:
+    comparisons = coordinated_comparisons(request.user).annotate(
+        n_participants=Count("participants", distinct=True)
+    )
+    if not comparisons.exists() and not _may_create(request.user):
+        raise Http404("You coordinate no comparison.")
+    counts: dict[int, Counter[str]] = defaultdict(Counter)
+    rows = _latest_status(Participant.objects.filter(comparison__in=comparisons))
+    for comparison_id, status in rows.values_list("comparison_id", "latest_status"):
+        counts[comparison_id][status or "none"] += 1
+    items = [(c, dict(counts[c.pk])) for c in comparisons.order_by("-created_at", "code")]
+    context = {"items": items, "may_create": _may_create(request.user), "statuses": St.choices}
+    return render(request, "coordinator/dashboard.html", context)
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def comparison_create(request: HttpRequest) -> HttpResponse:
+    if not _may_create(request.user):
+        raise Http404("You may not create comparisons.")
+    form = ComparisonCreateForm(request.POST or None)
+    if request.method == "POST" and form.is_valid():
+        with transaction.atomic():
+            comparison = form.save(commit=False)
+            comparison.protocol = form.cleaned_data["template"] or protocols.CUSTOM
+            comparison.save()
+            comparison.coordinators.add(request.user)
+        messages.success(request, f"Comparison {comparison.code} created. Add its devices next.")
+        return redirect("coordinator:comparison", code=comparison.code)
+    return render(request, "coordinator/comparison_form.html", {"form": form})
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def comparison_edit(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    form = ComparisonForm(request.POST or None, instance=comparison)
+    if comparison.status == ComparisonStatus.PUBLISHED:
+        form.add_error(None, "A published comparison can no longer be changed.")
+    elif request.method == "POST" and form.is_valid():
+        form.save()
+        messages.success(request, "Settings saved.")
+        return redirect("coordinator:comparison", code=form.instance.code)
+    context = {"form": form, "comparison": comparison}
+    return render(request, "coordinator/comparison_form.html", context)
+
+
+@login_required
+@require_GET
+def comparison_detail(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    participants = _latest_status(comparison.participants.select_related("laboratory"))
+    context = {
+        "comparison": comparison,
+        "devices": comparison.devices.all(),
+        "points": comparison.measurement_points.select_related("device"),
+        "participants": participants.order_by("code"),
+        "transitions": [t for t in comparison_allowed_transitions(comparison)
+                        if t in (ComparisonStatus.OPEN, ComparisonStatus.CLOSED)],
+        "template": protocols.TEMPLATES.get(comparison.protocol),
+    }  # fmt: skip
+    return render(request, "coordinator/comparison.html", context)
+
+
+@login_required
+@require_POST
+def comparison_status(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    target = request.POST.get("to", "")
+    if target not in (ComparisonStatus.OPEN, ComparisonStatus.CLOSED):
+        messages.error(request, "Use the open or close button; publication has its own button.")
+    else:
+        try:
+            comparison_transition(comparison=comparison, to=target)
+        except ApplicationError as exc:
+            messages.error(request, exc.message)
+        else:
+            messages.success(
+                request, f"{comparison.code} is now {comparison.get_status_display()}."
+            )
+    return redirect("coordinator:comparison", code=code)
+
+
+# --- devices and measurement points -------------------------------------------------------
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def device_add(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    form = DeviceForm(request.POST or None, comparison=comparison)
+    if request.method == "POST" and form.is_valid():
+        device = form.save()
+        messages.success(request, f"Device {device.name} added.")
+        return redirect("coordinator:comparison", code=code)
+    return render(request, "coordinator/device_form.html", {"form": form, "comparison": comparison})
+
+
+def _generate(comparison: Comparison, data: dict) -> list[MeasurementPoint]:
+    devices = list(comparison.devices.all())
+    if data.get("template"):
+        return comparison_apply_template(
+            comparison=comparison, template_key=data["template"], devices=devices
+        )
+    return measurement_points_generate(
+        comparison=comparison,
+        devices=devices,
+        axes=data["axes"],
+        frequencies_hz=data["frequencies_hz"],
+        benches=data["benches"],
+        directions=data["directions"] or None,
+    )
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def points_generate(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    initial = {
+        "template": comparison.protocol if comparison.protocol in protocols.TEMPLATES else ""
+    }
+    form = PointGridForm(request.POST or None, initial=initial)
+    if request.method == "POST" and form.is_valid():
+        try:
+            created = _generate(comparison, form.cleaned_data)
+        except ApplicationError as exc:
+            form.add_error(None, exc.message)
+        else:
+            messages.success(request, f"{len(created)} new measurement point(s) generated.")
+            return redirect("coordinator:comparison", code=code)
+    context = {"form": form, "comparison": comparison, "n_devices": comparison.devices.count()}
+    return render(request, "coordinator/points_form.html", context)
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def point_edit(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+    comparison = coordinated(request, code)
+    point = get_object_or_404(comparison.measurement_points.select_related("device"), pk=pk)
+    form = PointOverrideForm(request.POST or None, instance=point)
+    if request.method == "POST" and form.is_valid():
+        form.save()
+        messages.success(request, f"Overrides of {point} saved.")
+        return redirect("coordinator:comparison", code=code)
+    context = {"form": form, "comparison": comparison, "point": point}
+    return render(request, "coordinator/point_form.html", context)
+
+
+# --- participants -------------------------------------------------------------------------
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def participants_invite(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    form = InviteForm(request.POST or None, comparison=comparison)
+    if request.method == "POST" and form.is_valid():
+        added = [
+            participant_add(comparison=comparison, laboratory=lab)
+            for lab in form.cleaned_data["laboratories"]
+        ]
+        codes = ", ".join(sorted(p.code for p in added))
+        messages.success(request, f"{len(added)} laboratory(ies) invited: {codes}.")
+        return redirect("coordinator:comparison", code=code)
+    return render(request, "coordinator/invite.html", {"form": form, "comparison": comparison})
+
+
+@login_required
+@require_POST
+def participant_reference(request: HttpRequest, code: str, participant: str) -> HttpResponse:
+    """Mark one participant as the reference (pilot) laboratory; the others lose the mark."""
+    comparison = coordinated(request, code)
+    chosen = get_object_or_404(comparison.participants, code=participant)
+    with transaction.atomic():
+        comparison.participants.exclude(pk=chosen.pk).update(is_reference=False)
+        comparison.participants.filter(pk=chosen.pk).update(is_reference=True)
+    messages.success(request, f"{chosen.code} is now the reference laboratory.")
+    return redirect("coordinator:comparison", code=code)
+
+
+# --- review -------------------------------------------------------------------------------
+
+
+@login_required
+@require_GET
+def review(request: HttpRequest, code: str) -> HttpResponse:
+    comparison = coordinated(request, code)
+    participants = _latest_status(comparison.participants.select_related("laboratory"))
+    context = {
+        "comparison": comparison,
+        "participants": participants.order_by("code"),
+        "n_points": comparison.measurement_points.count(),
+    }
+    return render(request, "coordinator/review.html", context)
+
+
+def _others(comparison: Comparison, participant: Participant) -> dict[int, list[tuple]]:
+    """The other participants' current submitted/accepted results by point, labs by code."""
+    current = current_submissions(comparison, (St.SUBMITTED, St.ACCEPTED))
+    rows = (
+        Result.objects.filter(submission__in=current)
+        .exclude(submission__participant=participant)
+        .order_by("submission__participant__code")
+        .values_list(
+            "measurement_point_id", "submission__participant__code", "value",
+            "expanded_uncertainty",
+        )
+    )  # fmt: skip
+    by_point: dict[int, list[tuple]] = defaultdict(list)
+    for point_id, lab, value, big_u in rows:
+        by_point[point_id].append((lab, value, big_u))
+    return by_point
+
+
+POINT_ORDER = [f"measurement_point__{f}" for f in MeasurementPoint._meta.ordering]
+
+
+def _review_rows(submission: Submission) -> list[dict]:
+    """Each result of ``submission`` beside the others' at the same point and their median."""
+    others = _others(submission.participant.comparison, submission.participant)
+    results = submission.results.select_related("measurement_point__device").order_by(*POINT_ORDER)
+    rows = []
+    for r in results:
+        near = others.get(r.measurement_point_id, [])
+        median = statistics.median(v for _, v, _ in near) if near else None
+        deviation = 100 * (r.value - median) / median if median else None
+        rows.append({"result": r, "others": near, "median": median, "deviation": deviation})
+    return rows
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def submission_review(
+    request: HttpRequest, code: str, participant: str, version: int
+) -> HttpResponse:
+    comparison = coordinated(request, code)
+    submission = get_object_or_404(
+        Submission.objects.select_related("participant__laboratory", "participant__comparison"),
+        participant__comparison=comparison, participant__code=participant, version=version,
+    )  # fmt: skip
+    form = DecisionForm(request.POST or None)
+    if request.method == "POST" and form.is_valid():
+        try:
+            decided = submission_decide(
+                submission=submission,
+                decision=form.cleaned_data["decision"],
+                message=form.cleaned_data["message"],
+                user=request.user,
+            )
+        except ApplicationError as exc:
+            form.add_error(None, exc.message)
+        else:
+            messages.success(
+                request, f"Version {decided.version} of {participant} {decided.status}."
+            )
+            return redirect("coordinator:review", code=code)
+    context = {
+        "comparison": comparison,
+        "submission": submission,
+        "form": form,
+        "rows": _review_rows(submission),
+        "may_decide": submission.status == St.SUBMITTED,
+    }
+    return render(request, "coordinator/submission.html", context)
+
+
+@login_required
+@require_POST
+def result_check(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+    comparison = coordinated(request, code)
+    result = get_object_or_404(
+        Result.objects.select_related("measurement_point__device", "submission__participant"),
+        pk=pk, submission__participant__comparison=comparison,
+    )  # fmt: skip
+    submission_request_check(result=result, user=request.user)
+    s = result.submission
+    messages.success(
+        request,
+        f"{s.participant.code} was asked to check its result for {result.measurement_point} "
+        "(nothing about the size or sign of the deviation was said).",
+    )
+    return redirect("coordinator:submission", code=code, participant=s.participant.code,
+                    version=s.version)  # fmt: skip

@@ -1,0 +1,189 @@
+"""Forms of the coordinator pages: comparison settings, devices, the point grid, overrides,
+invitations and review decisions.  They collect and check input; the writes are services."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from django import forms
+
+from labs.models import Laboratory
+from proficiency import protocols
+from proficiency.models import (
+    AssignedValueMethod,
+    Axis,
+    Bench,
+    Comparison,
+    Device,
+    Direction,
+    MeasurementPoint,
+)
+
+
+class BootstrapMixin:
+    """Bootstrap 5 classes on every widget (no crispy-forms needed for these small forms)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)  # type: ignore[call-arg]
+        for field in self.fields.values():  # type: ignore[attr-defined]
+            widget = field.widget
+            if isinstance(widget, forms.CheckboxInput | forms.CheckboxSelectMultiple):
+                css = "form-check-input"
+            elif isinstance(widget, forms.Select | forms.SelectMultiple):
+                css = "form-select"
+            else:
+                css = "form-control"
+            widget.attrs.setdefault("class", css)
+
+
+TEMPLATE_CHOICES = [("", "From scratch (add devices and points yourself)")] + [
+    (key, t.title) for key, t in protocols.TEMPLATES.items()
+]
+
+
+class ComparisonForm(BootstrapMixin, forms.ModelForm):
+    class Meta:
+        model = Comparison
+        fields = [
+            "code",
+            "title",
+            "description",
+            "submission_deadline",
+            "assigned_value_method",
+            "sigma_pt_mode",
+            "sigma_pt_value",
+            "en_limit",
+        ]
+        widgets = {
+            "description": forms.Textarea(attrs={"rows": 3}),
+            "submission_deadline": forms.DateTimeInput(
+                attrs={"type": "datetime-local"}, format="%Y-%m-%dT%H:%M"
+            ),
+        }
+        labels = {
+            "sigma_pt_mode": "σ_pt mode",
+            "sigma_pt_value": "σ_pt value",
+            "en_limit": "En limit",
+        }
+
+    def clean(self) -> dict[str, Any]:
+        data = super().clean()
+        mode, value = data.get("sigma_pt_mode"), data.get("sigma_pt_value")
+        if mode in ("absolute", "relative") and not value:
+            self.add_error("sigma_pt_value", "A prescribed σ_pt needs a value > 0.")
+        return data
+
+
+class ComparisonCreateForm(ComparisonForm):
+    template = forms.ChoiceField(
+        choices=TEMPLATE_CHOICES,
+        required=False,
+        label="Protocol template",
+        help_text="A template sets the protocol; its measurement points are generated once "
+        "you add devices.",
+    )
+
+
+class DeviceForm(BootstrapMixin, forms.ModelForm):
+    class Meta:
+        model = Device
+        fields = [
+            "name",
+            "model",
+            "serial",
+            "unit",
+            "nominal_sensitivity",
+            "tolerance",
+            "tolerance_relative",
+            "tolerance_distribution",
+        ]
+        labels = {"tolerance": "Tolerance (± half-width)", "tolerance_relative": "Tolerance in %"}
+
+    def __init__(self, *args: Any, comparison: Comparison, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.instance.comparison = comparison
+
+    def clean_name(self) -> str:
+        name = self.cleaned_data["name"].strip()
+        taken = Device.objects.filter(comparison=self.instance.comparison, name=name)
+        if taken.exclude(pk=self.instance.pk).exists():
+            raise forms.ValidationError(f"This comparison already has a device named {name!r}.")
+        return name
+
+
+def _floats(text: str) -> list[float]:
+    try:
+        values = [float(v) for v in text.replace(";", ",").split(",") if v.strip()]
+    except ValueError:
+        raise forms.ValidationError("Give numbers separated by commas, e.g. 5, 10, 20.") from None
+    if not values or any(not (0 < v < float("inf")) for v in values):
+        raise forms.ValidationError("Give at least one frequency; each must be > 0.")
+    return values
+
+
+class PointGridForm(BootstrapMixin, forms.Form):
+    """Generate the grid from a protocol template, or from lists of axes/frequencies/benches."""
+
+    template = forms.ChoiceField(
+        choices=[("", "Use the lists below"), *TEMPLATE_CHOICES[1:]], required=False
+    )
+    axes = forms.MultipleChoiceField(
+        choices=Axis.choices, required=False, widget=forms.CheckboxSelectMultiple
+    )
+    frequencies = forms.CharField(required=False, help_text="Hz, separated by commas")
+    benches = forms.MultipleChoiceField(
+        choices=Bench.choices, required=False, widget=forms.CheckboxSelectMultiple
+    )
+    directions = forms.MultipleChoiceField(
+        choices=Direction.choices,
+        required=False,
+        widget=forms.CheckboxSelectMultiple,
+        help_text="Leave empty for each bench's own directions.",
+    )
+
+    def clean(self) -> dict[str, Any]:
+        data = super().clean()
+        if data.get("template"):
+            return data
+        if not data.get("axes"):
+            self.add_error("axes", "Choose at least one axis (or a template).")
+        if not data.get("benches"):
+            self.add_error("benches", "Choose at least one bench (or a template).")
+        try:
+            data["frequencies_hz"] = _floats(data.get("frequencies", ""))
+        except forms.ValidationError as exc:
+            self.add_error("frequencies", exc)
+        return data
+
+
+class PointOverrideForm(BootstrapMixin, forms.ModelForm):
+    class Meta:
+        model = MeasurementPoint
+        fields = ["assigned_value_method", "sigma_pt_value"]
+        labels = {"assigned_value_method": "Assigned-value method", "sigma_pt_value": "σ_pt"}
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        choices = [("", "Comparison's method"), *AssignedValueMethod.choices]
+        self.fields["assigned_value_method"].choices = choices
+
+
+class InviteForm(BootstrapMixin, forms.Form):
+    laboratories = forms.ModelMultipleChoiceField(
+        queryset=Laboratory.objects.none(), widget=forms.SelectMultiple(attrs={"size": 8})
+    )
+
+    def __init__(self, *args: Any, comparison: Comparison, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.fields["laboratories"].queryset = Laboratory.objects.exclude(
+            participations__comparison=comparison
+        ).order_by("name")
+
+
+class DecisionForm(BootstrapMixin, forms.Form):
+    decision = forms.ChoiceField(choices=[("accept", "Accept"), ("reject", "Reject")])
+    message = forms.CharField(
+        required=False,
+        widget=forms.Textarea(attrs={"rows": 3}),
+        help_text="Required for a rejection: the laboratory reads it.",
+    )

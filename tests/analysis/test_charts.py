@@ -1,0 +1,60 @@
+"""analysis.charts: plain data in, deterministic inline SVG out (no database)."""
+
+import xml.etree.ElementTree as ET
+
+from analysis import charts
+
+LABS = ["L01", "L07", "L12"]
+
+
+def parse(svg: str) -> ET.Element:
+    assert svg.startswith("<svg")
+    return ET.fromstring(svg)
+
+
+def test_point_chart_has_labs_axis_labels_and_is_deterministic():
+    kwargs = dict(assigned_value=418.0, assigned_expanded_uncertainty=4.8,
+                  title="MEMS 1 · X · 5 Hz", unit="D/(m/s^2)", highlight="L07")  # fmt: skip
+    svg = charts.point_chart(LABS, [420.0, 421.5, 430.2], [8.0, 8.0, 9.0], **kwargs)
+    parse(svg)
+    for text in (*LABS, "Sensitivity (D/(m/s²))", "Participant", "x_pt"):
+        assert text in svg
+    assert charts.OWN in svg  # the own lab's colour
+    assert svg == charts.point_chart(LABS, [420.0, 421.5, 430.2], [8.0, 8.0, 9.0], **kwargs)
+
+
+def test_en_chart_marks_limit_and_outside_bars():
+    svg = charts.en_chart(LABS, [0.2, -0.6, 1.7], title="En", limit=1.0)
+    parse(svg)
+    assert "En" in svg and all(lab in svg for lab in LABS)
+    assert charts.BAD in svg  # the bar outside ±1 and the limit lines
+
+
+def test_frequency_chart_series_and_nominal_band():
+    series = [
+        charts.Series("X", [5, 10, 20], [420.0, 421.0, 422.0], [5.0, 5.0, 5.0]),
+        charts.Series("Y", [5, 8, 10], [419.0, 419.5, 420.0], [6.0, 6.0, 6.0]),
+    ]
+    svg = charts.frequency_chart(series, title="MEMS 1", unit="D/(m/s^2)", nominal=418.0,
+                                 nominal_half_width=4.18)  # fmt: skip
+    parse(svg)
+    for text in ("Frequency (Hz)", "MEMS 1", "nominal ± tolerance", "X", "Y"):
+        assert text in svg
+
+
+def test_heatmap_prints_en_values_and_escapes_text():
+    en = [[0.0, 0.25, 1.5], [0.25, 0.0, 0.1], [1.5, 0.1, 0.0]]
+    svg = charts.heatmap(["X", "Y", "<b>Z</b>"], en, title="device=<MEMS 1>", highlight="Y")
+    root = parse(svg)  # well-formed although a label contains markup
+    assert "<b>" not in svg and "&lt;b&gt;" in svg
+    assert "1.50" in svg and "0.25" in svg and "0.10" in svg
+    assert root.get("aria-label") == "En matrix: device=<MEMS 1>"
+
+
+def test_heatmap_large_matrix():
+    n = 30
+    levels = [f"L{i:02d}" for i in range(n)]
+    en = [[abs(i - j) / 10 for j in range(n)] for i in range(n)]
+    svg = charts.heatmap(levels, en, title="labs")
+    parse(svg)
+    assert "L29" in svg
