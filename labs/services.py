@@ -294,3 +294,13 @@ def api_key_revoke(*, key: LabAPIKey) -> LabAPIKey:
         key.revoked = True
         key.save(update_fields=["revoked"])
     return key
+
+
+@transaction.atomic
+def participant_set_reference(*, participant: Participant) -> Participant:
+    """Make ``participant`` the one reference (pilot) laboratory of its comparison."""
+    siblings = Participant.objects.filter(comparison_id=participant.comparison_id)
+    siblings.exclude(pk=participant.pk).update(is_reference=False)
+    siblings.filter(pk=participant.pk).update(is_reference=True)
+    participant.is_reference = True
+    return participant

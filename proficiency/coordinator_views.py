@@ -12,7 +12,6 @@ from collections import Counter, defaultdict
 
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
-from django.db import transaction
 from django.db.models import Count, OuterRef, QuerySet, Subquery
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
@@ -21,8 +20,8 @@ from django.views.decorators.http import require_GET, require_http_methods, requ
 from labs.models import Participant, Result, Submission
 from labs.review import submission_decide, submission_request_check
 from labs.selectors import current_submissions
-from labs.services import participant_add
-from proficiency import protocols
+from labs.services import participant_add, participant_set_reference
+from proficiency import protocols, services
 from proficiency.errors import ApplicationError
 from proficiency.forms import (
     ComparisonCreateForm,
@@ -101,11 +100,11 @@ def comparison_create(request: HttpRequest) -> HttpResponse:
         raise Http404("You may not create comparisons.")
     form = ComparisonCreateForm(request.POST or None)
     if request.method == "POST" and form.is_valid():
-        with transaction.atomic():
-            comparison = form.save(commit=False)
-            comparison.protocol = form.cleaned_data["template"] or protocols.CUSTOM
-            comparison.save()
-            comparison.coordinators.add(request.user)
+        comparison = services.comparison_create(
+            comparison=form.save(commit=False),
+            template_key=form.cleaned_data["template"],
+            user=request.user,
+        )
         messages.success(request, f"Comparison {comparison.code} created. Add its devices next.")
         return redirect("coordinator:comparison", code=comparison.code)
     return render(request, "coordinator/comparison_form.html", {"form": form})
@@ -252,9 +251,7 @@ def participant_reference(request: HttpRequest, code: str, participant: str) -> 
     """Mark one participant as the reference (pilot) laboratory; the others lose the mark."""
     comparison = coordinated(request, code)
     chosen = get_object_or_404(comparison.participants, code=participant)
-    with transaction.atomic():
-        comparison.participants.exclude(pk=chosen.pk).update(is_reference=False)
-        comparison.participants.filter(pk=chosen.pk).update(is_reference=True)
+    participant_set_reference(participant=chosen)
     messages.success(request, f"{chosen.code} is now the reference laboratory.")
     return redirect("coordinator:comparison", code=code)
 

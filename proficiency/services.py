@@ -191,3 +191,15 @@ def comparison_publish(*, comparison: Comparison, user: object | None = None) ->
     )
     send_mass_mail([(subject, body, None, [e]) for e in emails], fail_silently=False)
     return published
+
+
+@transaction.atomic
+def comparison_create(
+    *, comparison: Comparison, template_key: str | None, user: object
+) -> Comparison:
+    """Store a new (draft) comparison from validated fields; its creator coordinates it."""
+    comparison.protocol = template_key or protocols.CUSTOM
+    comparison.status = S.DRAFT
+    comparison.save()
+    comparison.coordinators.add(user)
+    return comparison

@@ -183,3 +183,12 @@ def test_publish_refused_without_run(client, demo):
     assert b"no successful analysis run" in response.content
     demo.refresh_from_db()
     assert demo.status == "closed"
+
+
+def test_lab_comparison_page_links_to_published_results(client, demo):
+    client.force_login(get_user_model().objects.get(username="lab05"))
+    page = client.get("/lab/comparisons/IMU-2024-DEMO/")
+    assert page.status_code == 200 and b"Published results" not in page.content
+    Comparison.objects.filter(code=CODE).update(status="published")
+    page = client.get("/lab/comparisons/IMU-2024-DEMO/")
+    assert b'href="/results/IMU-2024-DEMO/"' in page.content
