@@ -6,6 +6,7 @@ submission's message; the lab is told by e-mail.
 
 from __future__ import annotations
 
+from auditlog.models import LogEntry
 from django.contrib.auth.models import AbstractBaseUser
 from django.core.mail import send_mail
 
@@ -50,6 +51,13 @@ def submission_request_check(*, result: Result, user: AbstractBaseUser | None) -
     p = result.measurement_point
     where = f"{p.device.name}, {p.axis}, {p.frequency_hz:g} Hz, {p.bench} {p.direction}"
     submission = result.submission
+    LogEntry.objects.log_create(
+        submission,
+        force_log=True,
+        action=LogEntry.Action.ACCESS,
+        changes={"check_requested": [None, f"result {result.pk}: {where}"]},
+        actor=user if getattr(user, "pk", None) else None,
+    )
     _notify(
         submission,
         f"[{submission.participant.comparison.code}] please check a result",

@@ -42,6 +42,7 @@ from labs.models import Submission
 from labs.services import submission_from_file, submission_from_records
 from proficiency.errors import RequestTooLarge, ValidationFailed
 from proficiency.models import ComparisonStatus, MeasurementPoint
+from proficiency.serializers import NewComparisonSerializer
 
 #: multipart framing (boundaries, part headers, the submit field) on top of the file itself
 MULTIPART_SLACK_BYTES = 64 * 1024
@@ -111,6 +112,13 @@ class ComparisonList(ApiView, generics.ListAPIView):
 
     def get_queryset(self) -> QuerySet[Any]:
         return comparisons_for(caller_of(self.request)).order_by("-created_at", "code")
+
+    @extend_schema(request=NewComparisonSerializer, responses={201: NewComparisonSerializer})
+    def post(self, request: Request) -> Response:
+        """Create a draft comparison (coordinators); the caller becomes its coordinator."""
+        from proficiency.api import comparison_create_response
+
+        return comparison_create_response(request)
 
 
 @extend_schema(

@@ -179,6 +179,10 @@ def test_check_request_does_not_reveal_the_deviation(personas, demo):
     assert response.status_code == 202
     (msg,) = mail.outbox
     assert "MEMS 2" in msg.body
+    from auditlog.models import LogEntry
+
+    entry = LogEntry.objects.get_for_object(result.submission).get(action=LogEntry.Action.ACCESS)
+    assert entry.actor.username == "coordinator" and "check_requested" in entry.changes
     for leak in (f"{result.value}", "En", "high", "low", "%", "deviation of"):
         assert leak not in msg.body
     assert (

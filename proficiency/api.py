@@ -1,0 +1,144 @@
+"""Coordinator setup API: create a comparison, add devices, generate the point grid, invite
+laboratories (formats.md §3, extended). Thin views over ``proficiency.services`` and
+``labs.services``; the same rules as the coordinator pages."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from django.urls import path
+from drf_spectacular.utils import extend_schema
+from rest_framework import serializers, status
+from rest_framework.exceptions import PermissionDenied
+from rest_framework.request import Request
+from rest_framework.response import Response
+
+from analysis.api.views import require_coordinator
+from labs.api.views import ApiView
+from labs.models import Laboratory
+from labs.services import participant_add
+from proficiency import protocols
+from proficiency.errors import ValidationFailed
+from proficiency.models import Comparison, Device
+from proficiency.serializers import NewComparisonSerializer
+from proficiency.services import (
+    comparison_apply_template,
+    comparison_create,
+    measurement_points_generate,
+)
+
+
+def _valid(serializer: serializers.Serializer) -> dict[str, Any]:
+    if not serializer.is_valid():
+        raise ValidationFailed(
+            "The request does not fit; see errors.",
+            errors=[
+                {"row": None, "field": field, "message": str(problems[0])}
+                for field, problems in serializer.errors.items()
+            ],
+        )
+    return dict(serializer.validated_data)
+
+
+def comparison_create_response(request: Request) -> Response:
+    """POST /api/v1/comparisons/: create a draft comparison; the caller coordinates it."""
+    user = request.user
+    if not getattr(user, "has_perm", None) or not user.has_perm("proficiency.add_comparison"):
+        raise PermissionDenied("Only coordinators may create comparisons.")
+    data = _valid(NewComparisonSerializer(data=request.data))
+    template = data.pop("template", "") or None
+    created = comparison_create(comparison=Comparison(**data), template_key=template, user=user)
+    return Response(NewComparisonSerializer(created).data, status=status.HTTP_201_CREATED)
+
+
+class DeviceInSerializer(serializers.ModelSerializer):
+    class Meta:
+        model = Device
+        fields = [
+            "name", "model", "serial", "unit", "nominal_sensitivity", "tolerance",
+            "tolerance_relative", "tolerance_distribution",
+        ]  # fmt: skip
+        validators: list[Any] = []
+
+
+class DeviceAdd(ApiView):
+    @extend_schema(request=DeviceInSerializer, responses={201: DeviceInSerializer})
+    def post(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        data = _valid(DeviceInSerializer(data=request.data))
+        if access.comparison.devices.filter(name=data["name"]).exists():
+            raise ValidationFailed(f"{code} already has a device named {data['name']!r}.")
+        device = Device.objects.create(comparison=access.comparison, **data)
+        return Response(DeviceInSerializer(device).data, status=status.HTTP_201_CREATED)
+
+
+class GridSerializer(serializers.Serializer):
+    template = serializers.ChoiceField(choices=list(protocols.TEMPLATES), required=False)
+    devices = serializers.ListField(child=serializers.CharField(), required=False)
+    axes = serializers.ListField(child=serializers.CharField(max_length=1), required=False)
+    frequencies_hz = serializers.ListField(child=serializers.FloatField(), required=False)
+    benches = serializers.ListField(child=serializers.CharField(), required=False)
+    directions = serializers.ListField(child=serializers.CharField(), required=False)
+
+
+class PointsGenerate(ApiView):
+    """The measurement-point grid from a seed template, or from lists (idempotent)."""
+
+    @extend_schema(request=GridSerializer, responses={201: None})
+    def post(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        data = _valid(GridSerializer(data=request.data))
+        c = access.comparison
+        devices = list(c.devices.filter(name__in=data["devices"]) if "devices" in data
+                       else c.devices.all())  # fmt: skip
+        if data.get("template"):
+            new = comparison_apply_template(
+                comparison=c, template_key=data["template"], devices=devices
+            )
+        else:
+            new = measurement_points_generate(
+                comparison=c,
+                devices=devices,
+                axes=data.get("axes", ["X", "Y", "Z"]),
+                frequencies_hz=data.get("frequencies_hz", []),
+                benches=data.get("benches", []),
+                directions=data.get("directions"),
+            )
+        body = {"created": len(new), "measurement_points": c.measurement_points.count()}
+        return Response(body, status=status.HTTP_201_CREATED)
+
+
+class InviteSerializer(serializers.Serializer):
+    laboratories = serializers.ListField(child=serializers.CharField(), min_length=1)
+
+
+class Invite(ApiView):
+    """Invite laboratories by name or id; each gets a random anonymous code."""
+
+    @extend_schema(request=InviteSerializer, responses={201: None})
+    def post(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        wanted = _valid(InviteSerializer(data=request.data))["laboratories"]
+        labs = {str(lab.pk): lab for lab in Laboratory.objects.filter(pk__in=[
+            w for w in wanted if w.isdigit()])} | {lab.name: lab for lab in
+            Laboratory.objects.filter(name__in=wanted)}  # fmt: skip
+        unknown = [w for w in wanted if w not in labs]
+        if unknown:
+            raise ValidationFailed(f"Unknown laboratories: {', '.join(unknown)}.")
+        added = [participant_add(comparison=access.comparison, laboratory=labs[w]) for w in wanted]
+        body = {"participants": [{"laboratory": p.laboratory.name, "code": p.code} for p in added]}
+        return Response(body, status=status.HTTP_201_CREATED)
+
+
+urlpatterns = [
+    path("comparisons/<slug:code>/devices/", DeviceAdd.as_view(), name="device-add"),
+    path(
+        "comparisons/<slug:code>/measurands/generate/",
+        PointsGenerate.as_view(),
+        name="measurand-generate",
+    ),
+    path("comparisons/<slug:code>/participants/", Invite.as_view(), name="participant-invite"),
+]
