@@ -349,7 +349,7 @@ def point_method(analysis: Analysis, g: int) -> str:
     return point_method_of(analysis.assigned, g)
 
 
-def _plain(v: Any) -> Any:
+def json_value(v: Any) -> Any:
     """numpy scalars to JSON-safe Python; NaN and inf become None."""
     if isinstance(v, np.generic):
         v = v.item()
@@ -373,15 +373,15 @@ def assigned_records(analysis: Analysis) -> list[dict[str, Any]]:
     for g, point in enumerate(analysis.points):
         rec: dict[str, Any] = dict(zip(POINT_KEYS, point, strict=True))
         rec |= {
-            "value": _plain(a.value[g]),
-            "standard_uncertainty": _plain(a.standard_uncertainty[g]),
+            "value": json_value(a.value[g]),
+            "standard_uncertainty": json_value(a.standard_uncertainty[g]),
             "method": point_method(analysis, g),
             "n": int(analysis.groups.counts()[g]),
         }
         if math.isfinite(analysis.sigma_pt[g]):
-            rec["sigma_pt"] = _plain(analysis.sigma_pt[g])
+            rec["sigma_pt"] = json_value(analysis.sigma_pt[g])
         rec |= {
-            k: _plain(v[g])
+            k: json_value(v[g])
             for k, v in a.diagnostics.items()
             if np.ndim(v) == 1 and not k.startswith("_") and k != "method"
         }
@@ -418,17 +418,23 @@ def score_records(analysis: Analysis) -> list[dict[str, Any]]:
     return out
 
 
+def matrix_record(m: CompatibilityMatrix) -> dict[str, Any]:
+    """One matrix as plain JSON values, its by-keys under ``group``."""
+    return {
+        "factor": m.factor,
+        "group": {k: json_value(v) for k, v in m.group.items()},
+        "levels": [json_value(v) for v in m.levels],
+        "value": [float(v) for v in m.value],
+        "expanded_uncertainty": [float(v) for v in m.expanded_uncertainty],
+        "en": [[float(v) for v in row] for row in m.en],
+        "incompatible_pairs": int(m.incompatible_pairs),
+    }
+
+
 def compatibility_records(matrices: Sequence[CompatibilityMatrix]) -> list[dict[str, Any]]:
+    """formats.md §4: the group's keys at the top level of each record."""
     out = []
     for m in matrices:
-        rec: dict[str, Any] = {"factor": m.factor}
-        rec |= {k: _plain(v) for k, v in m.group.items()}
-        rec |= {
-            "levels": [_plain(v) for v in m.levels],
-            "value": [float(v) for v in m.value],
-            "expanded_uncertainty": [float(v) for v in m.expanded_uncertainty],
-            "en": [[float(v) for v in row] for row in m.en],
-            "incompatible_pairs": int(m.incompatible_pairs),
-        }
-        out.append(rec)
+        rec = matrix_record(m)
+        out.append({"factor": rec.pop("factor")} | rec.pop("group") | rec)
     return out

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
-import math
 from typing import Any
 
 import numpy as np
@@ -31,6 +30,8 @@ from analysis.pipeline import (
     SigmaPtSpec,
     analyse_grouped,
     assigned_values_mixed,
+    json_value,
+    matrix_record,
     point_method_of,
     sigma_pt_values,
 )
@@ -188,14 +189,6 @@ def _save(run: AnalysisRun, loaded: LoadedRound, analysis: Analysis) -> None:
     )
 
 
-def _json(v: Any) -> Any:
-    if isinstance(v, np.generic):
-        v = v.item()
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    return v
-
-
 def _assigned_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[AssignedValue]:
     v = a.assigned
     diag = {k: arr for k, arr in v.diagnostics.items() if not k.startswith("_") and k != "method"}
@@ -206,8 +199,8 @@ def _assigned_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[A
             value=float(v.value[g]),
             standard_uncertainty=float(v.standard_uncertainty[g]),
             method=point_method_of(v, g),
-            sigma_pt=_json(float(a.sigma_pt[g])),
-            diagnostics={k: _json(arr[g]) for k, arr in diag.items()},
+            sigma_pt=json_value(float(a.sigma_pt[g])),
+            diagnostics={k: json_value(arr[g]) for k, arr in diag.items()},
         )
         for g, pid in enumerate(loaded.point_ids)
     ]
@@ -255,17 +248,20 @@ def _score_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[Scor
 
 
 def _matrix_rows(run: AnalysisRun, a: Analysis) -> list[CompatibilityMatrix]:
-    return [
-        CompatibilityMatrix(
-            run=run,
-            factor=m.factor,
-            group={k: _json(v) for k, v in m.group.items()},
-            group_key=", ".join(f"{k}={_json(v)}" for k, v in m.group.items()) or "all",
-            levels=[_json(v) for v in m.levels],
-            values=[float(v) for v in m.value],
-            expanded_uncertainties=[float(v) for v in m.expanded_uncertainty],
-            en=[[float(v) for v in row] for row in m.en],
-            incompatible_pairs=int(m.incompatible_pairs),
+    rows = []
+    for rec in map(matrix_record, a.compatibility):
+        group = rec["group"]
+        rows.append(
+            CompatibilityMatrix(
+                run=run,
+                factor=rec["factor"],
+                group=group,
+                group_key=", ".join(f"{k}={v}" for k, v in group.items()) or "all",
+                levels=rec["levels"],
+                values=rec["value"],
+                expanded_uncertainties=rec["expanded_uncertainty"],
+                en=rec["en"],
+                incompatible_pairs=rec["incompatible_pairs"],
+            )
         )
-        for m in a.compatibility
-    ]
+    return rows

@@ -5,7 +5,7 @@ from __future__ import annotations
 from django.contrib.auth.models import AbstractBaseUser, AnonymousUser
 from django.db.models import Count, Max, OuterRef, QuerySet, Subquery
 
-from labs.importers import PointKey, ResultRow, TableContext
+from labs.importers import COLUMNS, PointKey, ResultRow, TableContext, write_table
 from labs.models import Laboratory, Participant, Result, Submission
 from proficiency.errors import NotVisible
 from proficiency.models import Comparison, MeasurementPoint
@@ -151,3 +151,28 @@ def participant_submissions(participant: Participant) -> QuerySet[Submission]:
         .annotate(n_results=Count("results"))
         .order_by("-version")
     )
+
+
+TEMPLATE_COLUMNS = [c for c in COLUMNS if c != "lab"]
+
+
+def results_template(comparison: Comparison, *, format: str) -> bytes:
+    """The results table of formats.md §1 with one row per measurement point, sensitivity
+    and U left empty, k = 2 filled in (the web download and the API serve the same file)."""
+    points = comparison.measurement_points.select_related("device").order_by(
+        "device__name", "bench", "direction", "axis", "frequency_hz", "amplitude_m_s2", "pk"
+    )
+    rows = (
+        {
+            "device": p.device.name,
+            "axis": p.axis,
+            "frequency_hz": p.frequency_hz,
+            "bench": p.bench,
+            "direction": p.direction,
+            "amplitude_m_s2": p.amplitude_m_s2,
+            "unit": p.device.unit,
+            "coverage_factor": 2,
+        }
+        for p in points
+    )
+    return write_table(rows, format=format, columns=TEMPLATE_COLUMNS)  # type: ignore[arg-type]

@@ -21,7 +21,6 @@ from django_htmx.http import HttpResponseClientRedirect
 
 from labs import services
 from labs.forms import APIKeyCreateForm, ResultGridForm, ResultUploadForm
-from labs.importers import COLUMNS, write_table
 from labs.importers.values import human_size
 from labs.models import LabAPIKey, Laboratory, Membership, Participant, Result, Submission
 from labs.selectors import (
@@ -30,12 +29,12 @@ from labs.selectors import (
     participant_submissions,
     user_laboratories,
 )
+from labs.selectors import results_template as template_bytes
 from proficiency import protocols
 from proficiency import views as proficiency_views
 from proficiency.errors import NotVisible, StateConflict, ValidationFailed
 from proficiency.models import Comparison
 
-TEMPLATE_COLUMNS = [c for c in COLUMNS if c != "lab"]
 CONTENT_TYPES = {
     "csv": "text/csv; charset=utf-8",
     "xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet",
@@ -251,20 +250,7 @@ def results_template(request: HttpRequest, code: str, fmt: str) -> HttpResponse:
         raise Http404("The template comes as .csv or .xlsx.")
     participant = _participant(request, code)
     comparison = participant.comparison
-    rows = [
-        {
-            "device": p.device.name,
-            "axis": p.axis,
-            "frequency_hz": p.frequency_hz,
-            "bench": p.bench,
-            "direction": p.direction,
-            "amplitude_m_s2": p.amplitude_m_s2,
-            "unit": p.device.unit,
-            "coverage_factor": 2,
-        }
-        for p in comparison_points(comparison).values()
-    ]
-    data = write_table(rows, format=fmt, columns=TEMPLATE_COLUMNS)  # type: ignore[arg-type]
+    data = template_bytes(comparison, format=fmt)
     response = HttpResponse(data, content_type=CONTENT_TYPES[fmt])
     filename = f"{comparison.code}-results-template.{fmt}"
     response["Content-Disposition"] = f'attachment; filename="{filename}"'

@@ -7,6 +7,7 @@ from typing import Any
 from rest_framework import serializers
 
 from analysis.models import AnalysisRun, CompatibilityMatrix, Score
+from analysis.pipeline import matrix_record
 from labs.models import Submission
 from proficiency.models import Comparison
 
@@ -54,21 +55,9 @@ class MatrixSerializer(serializers.Serializer):
     incompatible_pairs = serializers.IntegerField()
 
 
-def _plain(v: Any) -> Any:
-    return v.item() if hasattr(v, "item") else v
-
-
 def matrix_dict(m: Any) -> dict[str, Any]:
     """A core CompatibilityMatrix (computed on request) as JSON."""
-    return {
-        "factor": m.factor,
-        "group": {k: _plain(v) for k, v in m.group.items()},
-        "levels": [_plain(v) for v in m.levels],
-        "value": [float(v) for v in m.value],
-        "expanded_uncertainty": [float(v) for v in m.expanded_uncertainty],
-        "en": [[float(v) for v in row] for row in m.en],
-        "incompatible_pairs": int(m.incompatible_pairs),
-    }
+    return matrix_record(m)
 
 
 def stored_matrix_dict(m: CompatibilityMatrix) -> dict[str, Any]:

@@ -8,11 +8,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from django.db.models import QuerySet
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
-from labs.importers import COLUMNS, write_table
 from labs.models import Result, Submission
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
 
@@ -143,26 +141,6 @@ class MeasurementPointSerializer(serializers.ModelSerializer):
             "amplitude_m_s2",
             "unit",
         ]
-
-
-TEMPLATE_COLUMNS = [c for c in COLUMNS if c != "lab"]
-
-
-def template_table(points: QuerySet[MeasurementPoint], *, format: str) -> bytes:
-    """The results table of formats.md §1 with one empty row per measurement point."""
-    rows = (
-        {
-            "device": p.device.name,
-            "axis": p.axis,
-            "frequency_hz": p.frequency_hz,
-            "bench": p.bench,
-            "direction": p.direction,
-            "amplitude_m_s2": p.amplitude_m_s2,
-            "unit": p.device.unit,
-        }
-        for p in points
-    )
-    return write_table(rows, format=format, columns=TEMPLATE_COLUMNS)  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------- submissions

@@ -39,6 +39,7 @@ from labs.api.permissions import (
 from labs.api.throttling import LabAPIKeyRateThrottle, SessionUserRateThrottle
 from labs.importers.values import human_size
 from labs.models import Submission
+from labs.selectors import results_template
 from labs.services import submission_from_file, submission_from_records
 from proficiency.errors import RequestTooLarge, ValidationFailed
 from proficiency.models import ComparisonStatus, MeasurementPoint
@@ -192,7 +193,7 @@ class ResultsTemplate(ApiView):
     def get(self, request: Request, code: str) -> Response:
         comparison = self.access(code).comparison
         fmt = request.accepted_renderer.format
-        body = s.template_table(measurement_points(comparison), format=fmt)
+        body = results_template(comparison, format=fmt)
         filename = f"{comparison.code}-results-template.{fmt}"
         return Response(body, headers={"Content-Disposition": f'attachment; filename="{filename}"'})
 
