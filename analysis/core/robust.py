@@ -81,7 +81,8 @@ class _Sorted:
         numpy orders complex numbers lexicographically (real part, then imaginary), so
         one ``np.searchsorted`` finds a value in every row at once, exactly (no float
         offsets).  The NaN padding becomes +inf, which stays at the end of its row."""
-        vals = np.where(np.isnan(self.rows), np.inf, self.rows)
+        padded = self.rows.shape[1] > 0 and bool(np.isnan(self.rows[:, -1]).any())
+        vals = np.where(np.isnan(self.rows), np.inf, self.rows) if padded else self.rows
         keys = np.empty(self.rows.shape, dtype=np.complex128)
         keys.real = self.index[:, None]
         keys.imag = vals
@@ -222,47 +223,65 @@ def median_niqr(x: ArrayLike, groups: Groups) -> AssignedValues:
 class _Prefix:
     """Outward partial sums of sorted, median-centred rows, for window sums in O(1).
 
-    ``out[r, t]`` is the sum of the t values next to the split (the first value >= 0)
-    going outwards: rows 0..G-1 hold the right side, a[split], a[split+1], ...; rows
-    G..2G-1 the left side, a[split-1], a[split-2], ...  Summing outwards from the
-    median keeps far outliers out of every sum that is used (no cancellation), and
-    each side is only half a row wide, so one cumsum of G x n values serves both.
+    Each row is split at its median position m = n // 2: left of it every centred value
+    is <= 0, from it on every value is >= 0.  ``right[r, t]`` sums a[m], ..., a[m+t-1]
+    and ``left[r, t]`` sums a[m-1], ..., a[m-t] (and the same for squares).  Summing
+    outwards from the median keeps far outliers out of every sum that is used (no
+    cancellation).  When all groups have the same size the two sides are plain slices
+    of the sorted rows; otherwise they are gathered row by row.
     """
 
     split: IntArray
-    sums: FloatArray
-    squares: FloatArray
+    right: FloatArray
+    left: FloatArray
+    right2: FloatArray
+    left2: FloatArray
 
     @classmethod
     def build(cls, a: _Sorted) -> _Prefix:
-        g = a.n.size
-        split = _count_below(a, a.index, np.zeros(g), inclusive=False)
-        width = int(max(np.max(split), np.max(a.n - split))) if g else 0
-        t = np.arange(width)
-        cols = np.concatenate([split[:, None] + t, split[:, None] - 1 - t])
-        valid = np.concatenate([cols[:g] < a.n[:, None], cols[g:] >= 0])
-        rows2 = np.concatenate([a.index, a.index])[:, None]
-        np.clip(cols, 0, a.rows.shape[1] - 1, out=cols)
-        side = a.rows[rows2, cols]
-        side[~valid] = 0.0
-        sums = _cum(side)
-        np.multiply(side, side, out=side)
-        return cls(split, sums, _cum(side))
+        split = a.n // 2
+        if a.n.size and bool(np.all(a.n == a.n[0])):
+            n, m = int(a.n[0]), int(split[0])
+            right, left = a.rows[:, m:n], a.rows[:, :m][:, ::-1]
+        else:
+            right, left = _sides(a, split)
+        return cls(split, _cum(right), _cum(left), _cum(right * right), _cum(left * left))
 
-    def _signed(self, table: FloatArray, sel: IntArray, p: IntArray) -> FloatArray:
+    def _signed(
+        self, right: FloatArray, left: FloatArray, sel: IntArray, p: IntArray
+    ) -> FloatArray:
         """S(p) with sum(a[i:j]) = S(j) - S(i): right of the split the outward sum up to
         p, left of it minus the outward sum down to p."""
-        g = self.split.size
         k = p - self.split[sel]
-        right = table[sel, np.maximum(k, 0)]
-        left = table[g + sel, np.maximum(-k, 0)]
-        return np.where(k >= 0, right, -left)
+        r = right[sel, np.clip(k, 0, right.shape[1] - 1)]
+        lv = left[sel, np.clip(-k, 0, left.shape[1] - 1)]
+        return np.where(k >= 0, r, -lv)
 
     def window(self, sel: IntArray, i: IntArray, j: IntArray) -> tuple[FloatArray, FloatArray]:
         """Sum and sum of squares of the values at positions i..j-1 of the selected rows."""
-        s1 = self._signed(self.sums, sel, j) - self._signed(self.sums, sel, i)
-        s2 = self._signed(self.squares, sel, j) - self._signed(self.squares, sel, i)
+        s1 = self._signed(self.right, self.left, sel, j) - self._signed(
+            self.right, self.left, sel, i
+        )
+        s2 = self._signed(self.right2, self.left2, sel, j) - self._signed(
+            self.right2, self.left2, sel, i
+        )
         return s1, s2
+
+
+def _sides(a: _Sorted, split: IntArray) -> tuple[FloatArray, FloatArray]:
+    """Right and left sides of rows of different lengths, zero-padded to one width."""
+    width = int(max(np.max(split), np.max(a.n - split)))
+    t = np.arange(width)
+    out = []
+    for cols, valid in (
+        (split[:, None] + t, split[:, None] + t < a.n[:, None]),
+        (split[:, None] - 1 - t, split[:, None] - 1 - t >= 0),
+    ):
+        np.clip(cols, 0, a.rows.shape[1] - 1, out=cols)
+        side = np.take_along_axis(a.rows, cols, axis=1)
+        side[~valid] = 0.0
+        out.append(side)
+    return out[0], out[1]
 
 
 def _cum(v: FloatArray) -> FloatArray:
