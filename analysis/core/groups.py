@@ -87,7 +87,10 @@ class Groups:
     def sum(self, values: ArrayLike) -> FloatArray:
         """Sum of ``values`` per group (0 for an empty group)."""
         v = np.asarray(values, dtype=np.float64)
-        return np.bincount(self.index, weights=v, minlength=self.n_groups)
+        # with weights, bincount returns float64 (numpy's stubs say int)
+        return np.bincount(self.index, weights=v, minlength=self.n_groups).astype(
+            np.float64, copy=False
+        )
 
     def mean(self, values: ArrayLike) -> FloatArray:
         """Mean per group (NaN for an empty group: callers check ``counts()`` first)."""
