@@ -332,7 +332,8 @@ def grubbs(x: ArrayLike, groups: Groups) -> Grubbs:
     r = np.arange(n.size)
     valid = cols < n[:, None]
     ss0 = _masked_ss(rows, valid)
-    flat = ss0 == 0
+    # all values equal: the rounded mean may leave a tiny ss0, so test the range too
+    flat = (ss0 == 0) | (rows[r, n - 1] == rows[r, 0])
     s = np.sqrt(ss0 / np.maximum(n - 1, 1))
     safe_s, safe_ss0 = np.where(flat, 1.0, s), np.where(flat, 1.0, ss0)
     mean = np.where(valid, rows, 0.0).sum(axis=1) / n

@@ -227,3 +227,11 @@ def test_combine_assigned_uncertainty() -> None:
     np.testing.assert_allclose(c.combine_assigned_uncertainty(0.3, 0.0, [0.4]), [0.5])
     with pytest.raises(CoreInputError, match="u_hom"):
         c.combine_assigned_uncertainty(1.0, -1.0)
+
+
+def test_grubbs_identical_values_are_degenerate_despite_rounding() -> None:
+    """Found by hypothesis: three equal values whose float mean is off by one ulp."""
+    v = 2731.352202471765
+    res = c.grubbs(np.array([v, v, v]), Groups.from_index([0, 0, 0]))
+    assert res.degenerate[0]
+    assert res.g_high[0] == 0.0 and res.code_high[0] == 0 and res.code_low[0] == 0
