@@ -1,6 +1,13 @@
 from django.contrib import admin
 
-from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Report, Score
+from analysis.models import (
+    AnalysisRun,
+    AssignedValue,
+    CompatibilityMatrix,
+    Report,
+    ReportDownload,
+    Score,
+)
 
 
 @admin.register(AnalysisRun)
@@ -38,3 +45,11 @@ class CompatibilityMatrixAdmin(admin.ModelAdmin):
     list_display = ["factor", "group_key", "run", "incompatible_pairs"]
     list_filter = ["factor", "run__comparison"]
     search_fields = ["group_key"]
+
+
+@admin.register(ReportDownload)
+class ReportDownloadAdmin(admin.ModelAdmin):
+    list_display = ["report", "user", "laboratory", "at"]
+    list_filter = ["report__comparison", "report__kind"]
+    search_fields = ["report__comparison__code", "user__username", "laboratory__name"]
+    raw_id_fields = ["report"]

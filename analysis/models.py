@@ -5,6 +5,8 @@ These start minimal; the coordinator and report issues grow them.
 
 from __future__ import annotations
 
+import secrets
+
 from django.conf import settings
 from django.db import models
 from django.db.models import Q
@@ -121,8 +123,23 @@ class CompatibilityMatrix(models.Model):
         return f"{self.factor} | {self.group_key} (run {self.run_id})"
 
 
+def report_token() -> str:
+    """A random, non-guessable handle for download links (256 bits, URL-safe)."""
+    return secrets.token_urlsafe(32)
+
+
+def report_path(instance: Report, filename: str) -> str:
+    """MEDIA_ROOT/reports/<comparison>/<token>.pdf: outside static, not guessable."""
+    return f"reports/{instance.comparison.code}/{instance.token}.pdf"
+
+
 class Report(models.Model):
-    """An issued PDF report: summary or one participant's."""
+    """An issued PDF report: summary or one participant's.
+
+    ``version`` counts the files stored for one (comparison, kind, participant); a new
+    version supersedes the older ones, which are kept. ``token`` names the file and is
+    the only handle of the download URL.
+    """
 
     class Kind(models.TextChoices):
         SUMMARY = "summary", "Summary report"
@@ -137,7 +154,8 @@ class Report(models.Model):
         Participant, null=True, blank=True, on_delete=models.CASCADE, related_name="reports"
     )
     version = models.PositiveIntegerField(default=1)
-    file = models.FileField(upload_to="reports/", blank=True)
+    token = models.CharField(max_length=64, unique=True, default=report_token, editable=False)
+    file = models.FileField(upload_to=report_path, blank=True, max_length=200)
     sha256 = models.CharField(max_length=64, blank=True)
     size = models.PositiveIntegerField(default=0)
     software_version = models.CharField(max_length=40, blank=True)
@@ -156,3 +174,22 @@ class Report(models.Model):
 
     def __str__(self) -> str:
         return f"{self.get_kind_display()} v{self.version} ({self.comparison.code})"
+
+
+class ReportDownload(models.Model):
+    """One download of a report: who (a person, or a laboratory's API key) and when."""
+
+    report = models.ForeignKey(Report, on_delete=models.CASCADE, related_name="downloads")
+    user = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL
+    )
+    laboratory = models.ForeignKey(
+        "labs.Laboratory", null=True, blank=True, on_delete=models.SET_NULL
+    )
+    at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["-at"]
+
+    def __str__(self) -> str:
+        return f"{self.report} downloaded at {self.at:%Y-%m-%d %H:%M}"

@@ -3,6 +3,8 @@
 from celery import shared_task
 from django.conf import settings
 
+from analysis.reports.tasks import report_issue_task, reports_issue_all_task  # noqa: F401
+
 
 @shared_task(
     acks_late=True,

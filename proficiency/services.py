@@ -174,9 +174,11 @@ def comparison_publish(*, comparison: Comparison, user: object | None = None) ->
     e-mail (console back end by default). Reports are issued by the report service."""
     from django.core.mail import send_mass_mail
 
+    from analysis.reports.services import reports_enqueue
     from labs.models import Membership
 
     published = comparison_transition(comparison=comparison, to=S.PUBLISHED)
+    reports_enqueue(comparison_id=published.pk)  # issued by Celery after commit
     emails = sorted(
         set(
             Membership.objects.filter(

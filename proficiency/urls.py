@@ -14,11 +14,13 @@ urlpatterns = [
     path("", lab_views.home, name="home"),
     path("", include("labs.urls")),
     path("", include("proficiency.coordinator_urls")),
+    path("", include("analysis.reports.views")),
     path("accounts/", include("django.contrib.auth.urls")),
     path("admin/", admin.site.urls),
     path("api/v1/", include("labs.api.urls")),
     path("api/v1/", include("analysis.api.urls")),
     path("api/v1/", include("proficiency.api")),
+    path("api/v1/", include("analysis.reports.api")),
     path("api/schema/", SpectacularAPIView.as_view(), name="schema"),
     path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),
 ]

@@ -39,6 +39,15 @@ def celery_eager(request):
     app.conf.task_always_eager = old
 
 
+@pytest.fixture(autouse=True)
+def isolated_media_root(request, tmp_path):
+    """Uploaded files and issued reports go to a temporary folder, not the project's media/."""
+    if not request.config.pluginmanager.hasplugin("django"):
+        return
+    settings = request.getfixturevalue("settings")
+    settings.MEDIA_ROOT = tmp_path / "media"
+
+
 @pytest.fixture
 def comparison(db):
     from tests.factories import ComparisonFactory

@@ -1,0 +1,297 @@
+"""The sections of a PT report (domain.md §9) as lists of platypus flowables."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from html import escape
+
+from reportlab.lib import colors
+from reportlab.lib.units import mm
+from reportlab.platypus import Flowable, KeepTogether, Paragraph, Spacer, Table, TableStyle
+
+from analysis.reports import figures
+from analysis.reports.data import ReportData, ResultRow, ScoreRow
+from analysis.reports.styles import BAD_TEXT, BOLD, FONT, GRID, HEAD_BACKGROUND, OWN_BACKGROUND
+from analysis.reports.styles import STYLES as S
+
+CONFIDENTIALITY = (
+    "This report is confidential. Participants are identified by a code known only to "
+    "the participant itself and to the coordinators; no participant learns which code "
+    "another laboratory holds. The results may not be reproduced, except in full, without "
+    "the written permission of the provider."
+)
+INTERPRETATION = (
+    "Interpretation: |En| ≤ {limit:g} means the result agrees with the assigned value within "
+    "the stated expanded uncertainties; |En| > {limit:g} (action) means it does not. ζ and z "
+    "(or z′) are judged satisfactory at |score| ≤ 2, questionable for 2 < |score| < 3 and "
+    "unsatisfactory at |score| ≥ 3 (ISO 13528:2022 §9). D = x − x_pt."
+)
+
+
+def num(value: float | None, spec: str) -> str:
+    return "–" if value is None else format(value, spec)
+
+
+def para(text: str, style: str = "body") -> Paragraph:
+    return Paragraph(text, S[style])
+
+
+def table(
+    rows: list[list[str]],
+    widths: Sequence[float],
+    own_rows: Sequence[int] = (),
+    bad_cells: Sequence[tuple[int, int]] = (),
+) -> Table:
+    """A grid with a repeated dark header; the reader's own rows bold on a pink background."""
+    t = Table(rows, colWidths=list(widths), repeatRows=1)
+    style: list[tuple[object, ...]] = [
+        ("FONT", (0, 0), (-1, -1), FONT, 7.5),
+        ("FONT", (0, 0), (-1, 0), BOLD, 7.5),
+        ("TEXTCOLOR", (0, 0), (-1, 0), colors.white),
+        ("BACKGROUND", (0, 0), (-1, 0), HEAD_BACKGROUND),
+        ("GRID", (0, 0), (-1, -1), 0.25, GRID),
+        ("VALIGN", (0, 0), (-1, -1), "TOP"),
+        ("TOPPADDING", (0, 0), (-1, -1), 1.5),
+        ("BOTTOMPADDING", (0, 0), (-1, -1), 1.5),
+    ]
+    for r in own_rows:
+        style += [("BACKGROUND", (0, r), (-1, r), OWN_BACKGROUND), ("FONT", (0, r), (-1, r), BOLD)]
+    style += [("TEXTCOLOR", (c, r), (c, r), BAD_TEXT) for r, c in bad_cells]
+    t.setStyle(TableStyle(style))
+    return t
+
+
+def title_page(data: ReportData) -> list[Flowable]:
+    kind = (
+        f"Participant report for participant {data.own_code}"
+        if data.is_participant
+        else "Summary report"
+    )
+    rows = [
+        ["Proficiency testing provider", data.provider],
+        ["Comparison", f"{data.comparison_code} — {data.comparison_title}"],
+        ["Report number", data.report_number],
+        ["Issue date", data.issue_date.strftime("%Y-%m-%d")],
+        ["Status", data.status.capitalize()],
+        ["Coordinators", ", ".join(data.coordinators) or "–"],
+        ["Authorised by", data.authorised_by],
+        ["Software", f"proficiency {data.software_version}"],
+    ]
+    t = Table([[para(escape(a)), para(escape(b))] for a, b in rows], colWidths=[55 * mm, 119 * mm])
+    t.setStyle(TableStyle([("LINEBELOW", (0, 0), (-1, -1), 0.25, GRID)]))
+    return [
+        Spacer(1, 30 * mm),
+        para(escape(data.provider), "subtitle"),
+        para("Proficiency test report", "title"),
+        para(escape(kind), "subtitle"),
+        Spacer(1, 10 * mm),
+        t,
+        Spacer(1, 20 * mm),
+        para(f"Authorised by: {escape(data.authorised_by)}, on behalf of {escape(data.provider)}"),
+    ]
+
+
+def confidentiality(data: ReportData) -> list[Flowable]:
+    return [para("1 Confidentiality", "h1"), para(CONFIDENTIALITY)]
+
+
+def own_performance(data: ReportData) -> list[Flowable]:
+    """The participant's own scores explained in plain words, grouped by device."""
+    own = [s for s in data.scores if s.lab == data.own_code]
+    bad = sum(abs(s.en) > data.en_limit for s in own)
+    flow: list[Flowable] = [
+        para(f"Your results (participant {data.own_code})", "h1"),
+        para(
+            f"{len(own) - bad} of {len(own)} of your results are compatible with the assigned "
+            f"value (|En| ≤ {data.en_limit:g}); {bad} are not."
+        ),
+    ]
+    for device, rows in _by_device(data, own):
+        flow.append(para(escape(device), "h2"))
+        flow += [para(_sentence(data, s), "bullet") for s in rows]
+    return flow
+
+
+def _sentence(data: ReportData, s: ScoreRow) -> str:
+    where = escape(data.points[s.point].full_label)
+    if abs(s.en) <= data.en_limit:
+        return f"• Your result for {where} is compatible with the assigned value (En = {s.en:.2f})."
+    return (
+        f"• Your result for {where} is <b>not compatible</b> with the assigned value "
+        f"(En = {s.en:.2f}): please review the measurement and its uncertainty budget."
+    )
+
+
+def _by_device(data: ReportData, rows: Sequence[ScoreRow]) -> list[tuple[str, list[ScoreRow]]]:
+    out: dict[str, list[ScoreRow]] = {}
+    for s in rows:
+        out.setdefault(data.points[s.point].device, []).append(s)
+    return list(out.items())
+
+
+def design(data: ReportData) -> list[Flowable]:
+    freqs = ", ".join(f"{f:g}" for f in data.frequencies_hz)
+    flow: list[Flowable] = [
+        para("2 Scheme design and protocol", "h1"),
+        para(
+            f"<b>Protocol:</b> {escape(data.protocol_title)}. {escape(data.protocol_description)}"
+        ),
+        para(f"<b>Frequencies:</b> {freqs} Hz. <b>Measurement points:</b> {len(data.points)}."),
+    ]
+    flow += [para(f"<b>Bench:</b> {escape(b)}", "bullet") for b in data.bench_descriptions]
+    if data.amplitudes:
+        flow.append(para("<b>Amplitudes:</b> " + escape("; ".join(data.amplitudes)) + "."))
+    return flow
+
+
+def artefacts(data: ReportData) -> list[Flowable]:
+    rows = [["Device", "Model", "Serial", "Nominal ± tolerance", "Distribution", "Unit"]]
+    for d in data.devices:
+        tol = "–"
+        if d.nominal is not None:
+            pct = " %" if d.tolerance_relative else ""
+            tol = f"{d.nominal:g} ± {num(d.tolerance, 'g')}{pct}"
+        rows.append([d.name, d.model or "–", d.serial or "–", tol, d.distribution, d.unit])
+    return [
+        para("3 Artefacts", "h1"),
+        table(rows, [18 * mm, 22 * mm, 34 * mm, 34 * mm, 34 * mm, 32 * mm]),
+        Spacer(1, 3 * mm),
+        para(f"<b>Homogeneity and stability:</b> {escape(data.stability)}"),
+    ]
+
+
+def participants(data: ReportData) -> list[Flowable]:
+    codes = ", ".join(f"<b>{c}</b>" if c == data.own_code else c for c in data.participants)
+    ref = (
+        f" The reference (pilot) laboratory is {data.reference_code}."
+        if data.reference_code
+        else ""
+    )
+    return [
+        para("4 Participants", "h1"),
+        para(f"{len(data.participants)} participants, by code: {codes}.{ref}"),
+    ]
+
+
+def assigned_values(data: ReportData) -> list[Flowable]:
+    rows = [["Device", "Point", "x_pt", "u(x_pt)", "U(x_pt)", "σ_pt", "Method"]]
+    for a in data.assigned:
+        p = data.points[a.point]
+        rows.append(
+            [
+                p.device,
+                p.label,
+                f"{a.value:.6g}",
+                f"{a.standard_uncertainty:.3g}",
+                f"{2 * a.standard_uncertainty:.3g}",
+                num(a.sigma_pt, ".3g"),
+                a.method,
+            ]
+        )
+    return [
+        para("5 Assigned values", "h1"),
+        para(f"<b>Metrological traceability:</b> {escape(data.traceability)}"),
+        para(f"<b>σ_pt:</b> {escape(data.sigma_pt_description)}. U(x_pt) = 2·u(x_pt) (k = 2)."),
+        table(rows, [18 * mm, 44 * mm, 20 * mm, 16 * mm, 20 * mm, 14 * mm, 42 * mm]),
+    ]
+
+
+def results_and_scores(data: ReportData) -> list[Flowable]:
+    """Per device: every result (value, U, k) with its scores and flag (domain.md §4)."""
+    scores = {(s.point, s.lab): s for s in data.scores}
+    flow: list[Flowable] = [
+        para("6 Results and scores", "h1"),
+        para(INTERPRETATION.format(limit=data.en_limit)),
+    ]
+    devices = sorted({p.device for p in data.points})
+    for device in devices:
+        rows = [r for r in data.results if data.points[r.point].device == device]
+        flow += [para(escape(device), "h2"), _result_table(data, rows, scores)]
+    return flow
+
+
+def _result_table(
+    data: ReportData, rows: Sequence[ResultRow], scores: dict[tuple[int, str], ScoreRow]
+) -> Table:
+    out = [["Point", "Lab", "Value", "U", "k", "D", "En", "ζ", "z / z′", "Flag"]]
+    own: list[int] = []
+    bad: list[tuple[int, int]] = []
+    last = -1
+    for r in rows:
+        s: ScoreRow | None = scores.get((r.point, r.lab))
+        label = data.points[r.point].label if r.point != last else ""
+        last = r.point
+        out.append(
+            [
+                label,
+                r.lab,
+                f"{r.value:.6g}",
+                f"{r.expanded_uncertainty:.3g}",
+                f"{r.coverage_factor:g}",
+                num(s.d if s else None, "+.4g"),
+                num(s.en if s else None, ".2f"),
+                num(s.zeta if s else None, ".2f"),
+                num(s.z if s else None, ".2f"),
+                s.flag if s else "–",
+            ]
+        )
+        if r.lab == data.own_code:
+            own.append(len(out) - 1)
+        if s and abs(s.en) > data.en_limit:
+            bad.append((len(out) - 1, 6))
+    widths = [
+        44 * mm,
+        14 * mm,
+        19 * mm,
+        14 * mm,
+        8 * mm,
+        17 * mm,
+        13 * mm,
+        13 * mm,
+        14 * mm,
+        18 * mm,
+    ]
+    return table(out, widths, own, bad)
+
+
+def matrices(data: ReportData) -> list[Flowable]:
+    flow: list[Flowable] = [para("7 Compatibility matrices", "h1")]
+    if not data.matrices:
+        return [*flow, para("No compatibility matrices were stored for this run.")]
+    flow.append(para(f"Pairwise En between levels; |En| > {data.en_limit:g} is incompatible."))
+    for m in data.matrices:
+        head = ["", "value", "U", *list(m.levels)]
+        rows = [head]
+        bad = []
+        for i, level in enumerate(m.levels):
+            row = [level, f"{m.values[i]:.6g}", f"{m.expanded_uncertainties[i]:.3g}"]
+            row += ["–" if i == j else f"{e:.2f}" for j, e in enumerate(m.en[i])]
+            bad += [(i + 1, j + 3) for j, e in enumerate(m.en[i]) if i != j and e > data.en_limit]
+            rows.append(row)
+        n = len(m.levels)
+        widths = [22 * mm, 18 * mm, 14 * mm] + [min(18.0, 110.0 / max(n, 1)) * mm] * n
+        title = f"{m.factor} | {m.group} — {m.incompatible_pairs} incompatible pair(s)"
+        flow.append(
+            KeepTogether(
+                [para(escape(title), "small"), table(rows, widths, (), bad), Spacer(1, 3 * mm)]
+            )
+        )
+    return flow
+
+
+def charts(data: ReportData) -> list[Flowable]:
+    return [para("8 Graphs", "h1"), *figures.figures(data)]
+
+
+def comments(data: ReportData) -> list[Flowable]:
+    n = len(data.scores)
+    bad = sum(abs(s.en) > data.en_limit for s in data.scores)
+    text = escape(data.comments).replace("\n", "<br/>") if data.comments.strip() else "No comments."
+    return [
+        para("9 Comments and conclusions", "h1"),
+        para(text),
+        para(
+            f"<b>Conclusion:</b> {n - bad} of {n} results are compatible with their assigned "
+            f"values (|En| ≤ {data.en_limit:g}); {bad} are not."
+        ),
+    ]

@@ -1,0 +1,137 @@
+"""Issuing PT reports: render the current run, store the PDF, version and supersede.
+
+A report is never changed once stored: a reissue is a new version, and the older
+versions are kept with ``superseded = True``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Sequence
+
+from django.core.files.base import ContentFile
+from django.db import transaction
+from django.db.models import Max
+
+import proficiency
+from analysis.models import AnalysisRun, Report
+from analysis.reports.assemble import report_data
+from analysis.reports.render import render_report
+from analysis.selectors import current_run
+from labs.models import Participant
+from proficiency.errors import StateConflict, ValidationFailed
+from proficiency.models import Comparison, ComparisonStatus
+
+REPORTABLE = (ComparisonStatus.ANALYSED, ComparisonStatus.PUBLISHED)
+
+
+def _reportable_run(comparison: Comparison) -> AnalysisRun:
+    if comparison.status not in REPORTABLE:
+        raise StateConflict(
+            f"{comparison.code} is {comparison.status}: reports are issued for analysed "
+            "(preliminary) or published (final) comparisons."
+        )
+    run = current_run(comparison)
+    if run is None:
+        raise StateConflict(f"{comparison.code} has no successful analysis run to report.")
+    return run
+
+
+def _check_kind(comparison: Comparison, kind: str, participant: Participant | None) -> None:
+    if kind not in Report.Kind.values:
+        raise ValidationFailed(f"Unknown report kind {kind!r}; use summary or participant.")
+    if (kind == Report.Kind.PARTICIPANT) != (participant is not None):
+        raise ValidationFailed("A participant report needs a participant; a summary has none.")
+    if participant is not None and participant.comparison_id != comparison.pk:
+        raise ValidationFailed(f"Participant {participant.code} is not in {comparison.code}.")
+
+
+def report_edition(previous_runs: Sequence[int | None], run: AnalysisRun) -> int:
+    """The edition printed in the report number: one per distinct run reported, so
+    re-issuing the same run reproduces the same bytes (same number, same sha256)."""
+    order = list(dict.fromkeys([*previous_runs, run.pk]))
+    return order.index(run.pk) + 1
+
+
+@transaction.atomic
+def report_issue(
+    *,
+    comparison: Comparison,
+    kind: str,
+    participant: Participant | None = None,
+    authorised_by: str = "",
+    comments: str = "",
+) -> Report:
+    """Render and store a new version of a report from the current run; supersede the older."""
+    locked = Comparison.objects.select_for_update().get(pk=comparison.pk)
+    _check_kind(locked, kind, participant)
+    run = _reportable_run(locked)
+    previous = Report.objects.filter(comparison=locked, kind=kind, participant=participant)
+    runs = list(previous.order_by("version").values_list("run_id", flat=True))
+    pdf = render_report(
+        report_data(
+            run=run,
+            participant=participant,
+            edition=report_edition(runs, run),
+            authorised_by=authorised_by,
+            comments=comments,
+        )
+    )
+    version = (previous.aggregate(v=Max("version"))["v"] or 0) + 1
+    report = Report(
+        comparison=locked,
+        run=run,
+        kind=kind,
+        participant=participant,
+        version=version,
+        sha256=hashlib.sha256(pdf).hexdigest(),
+        size=len(pdf),
+        software_version=proficiency.__version__,
+    )
+    report.file.save(f"{report.token}.pdf", ContentFile(pdf), save=False)
+    report.save()
+    previous.exclude(pk=report.pk).filter(superseded=False).update(superseded=True)
+    return report
+
+
+def report_issue_once(*, run_id: int, kind: str, participant_id: int | None) -> Report | None:
+    """Issue unless a current (not superseded) report of this run already exists.
+
+    The task body: safe to run twice. Returns None when the run is no longer current."""
+    run = AnalysisRun.objects.select_related("comparison").get(pk=run_id)
+    if current_run(run.comparison) != run:
+        return None
+    existing = Report.objects.filter(run=run, kind=kind, superseded=False).filter(
+        participant__isnull=participant_id is None
+    )
+    if participant_id is not None:
+        existing = existing.filter(participant__pk=participant_id)
+    if existing.exists():
+        return existing.get()
+    participant = Participant.objects.get(pk=participant_id) if participant_id else None
+    return report_issue(comparison=run.comparison, kind=kind, participant=participant)
+
+
+def report_jobs(comparison: Comparison) -> list[tuple[int, str, int | None]]:
+    """(run id, kind, participant id) of every report a comparison's current run needs."""
+    run = _reportable_run(comparison)
+    jobs: list[tuple[int, str, int | None]] = [(run.pk, Report.Kind.SUMMARY, None)]
+    ids = comparison.participants.order_by("code").values_list("pk", flat=True)
+    return jobs + [(run.pk, Report.Kind.PARTICIPANT, pk) for pk in ids]
+
+
+def reports_issue_all(*, comparison: Comparison) -> list[Report]:
+    """Summary + one report per participant, synchronously (the task fans them out)."""
+    out = []
+    for run_id, kind, participant_id in report_jobs(comparison):
+        report = report_issue_once(run_id=run_id, kind=kind, participant_id=participant_id)
+        if report is not None:
+            out.append(report)
+    return out
+
+
+def reports_enqueue(*, comparison_id: int) -> None:
+    """After commit: one Celery task per report, as a group."""
+    from analysis.reports.tasks import reports_issue_all_task
+
+    transaction.on_commit(lambda: reports_issue_all_task.delay(comparison_id))

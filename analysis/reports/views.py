@@ -1,0 +1,32 @@
+"""The reports page: participants and coordinators list the reports they may download."""
+
+from __future__ import annotations
+
+from typing import cast
+
+from django.contrib.auth.base_user import AbstractBaseUser
+from django.contrib.auth.decorators import login_required
+from django.http import Http404, HttpRequest, HttpResponse
+from django.shortcuts import render
+from django.urls import path
+
+from analysis.reports.access import reports_visible
+from labs.api.permissions import Caller, comparison_access
+from proficiency.errors import NotVisible
+
+
+@login_required
+def reports_page(request: HttpRequest, code: str) -> HttpResponse:
+    try:
+        access = comparison_access(Caller(user=cast(AbstractBaseUser, request.user)), code)
+    except NotVisible:
+        raise Http404(f"No comparison {code!r} is visible to you.") from None
+    context = {
+        "comparison": access.comparison,
+        "reports": reports_visible(access),
+        "is_coordinator": access.is_coordinator,
+    }
+    return render(request, "reports/list.html", context)
+
+
+urlpatterns = [path("reports/<slug:code>/", reports_page, name="reports")]

@@ -1,0 +1,43 @@
+"""The demo comparison, analysed: the data every report test builds on."""
+
+import io
+from io import StringIO
+
+import pytest
+from django.core.management import call_command
+
+from analysis.selectors import current_run
+from analysis.services import analysis_run_start
+from proficiency.models import Comparison
+
+CODE = "IMU-2024-DEMO"
+
+
+@pytest.fixture
+def demo():
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    return Comparison.objects.get(code=CODE)
+
+
+@pytest.fixture
+def analysed(demo):
+    """The demo after one analysis run (eager Celery; needs a transactional test)."""
+    analysis_run_start(comparison=demo, user=None)
+    demo.refresh_from_db()
+    run = current_run(demo)
+    assert run is not None
+    return run
+
+
+@pytest.fixture(autouse=True)
+def media_root(settings, tmp_path):
+    """Issued reports go to a temporary MEDIA_ROOT, never into the working tree."""
+    settings.MEDIA_ROOT = tmp_path / "media"
+    return settings.MEDIA_ROOT
+
+
+def pdf_text(pdf: bytes) -> list[str]:
+    """The text of each page (pypdf)."""
+    from pypdf import PdfReader
+
+    return [page.extract_text() for page in PdfReader(io.BytesIO(pdf)).pages]
