@@ -122,6 +122,18 @@ class CompatibilityMatrix(models.Model):
     def __str__(self) -> str:
         return f"{self.factor} | {self.group_key} (run {self.run_id})"
 
+    def record(self) -> dict:
+        """The same shape as ``analysis.pipeline.matrix_record`` (the API answer)."""
+        return {
+            "factor": self.factor,
+            "group": self.group,
+            "levels": self.levels,
+            "value": self.values,
+            "expanded_uncertainty": self.expanded_uncertainties,
+            "en": self.en,
+            "incompatible_pairs": self.incompatible_pairs,
+        }
+
 
 def report_token() -> str:
     """A random, non-guessable handle for download links (256 bits, URL-safe)."""

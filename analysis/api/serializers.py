@@ -2,12 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from rest_framework import serializers
 
-from analysis.models import AnalysisRun, CompatibilityMatrix, Score
-from analysis.pipeline import matrix_record
+from analysis.models import AnalysisRun, Score
 from labs.models import Submission
 from proficiency.models import Comparison
 
@@ -53,23 +50,6 @@ class MatrixSerializer(serializers.Serializer):
     expanded_uncertainty = serializers.ListField(child=serializers.FloatField())
     en = serializers.ListField(child=serializers.ListField(child=serializers.FloatField()))
     incompatible_pairs = serializers.IntegerField()
-
-
-def matrix_dict(m: Any) -> dict[str, Any]:
-    """A core CompatibilityMatrix (computed on request) as JSON."""
-    return matrix_record(m)
-
-
-def stored_matrix_dict(m: CompatibilityMatrix) -> dict[str, Any]:
-    return {
-        "factor": m.factor,
-        "group": m.group,
-        "levels": m.levels,
-        "value": m.values,
-        "expanded_uncertainty": m.expanded_uncertainties,
-        "en": m.en,
-        "incompatible_pairs": m.incompatible_pairs,
-    }
 
 
 class ComparisonStateSerializer(serializers.ModelSerializer):

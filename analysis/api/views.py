@@ -17,6 +17,7 @@ from rest_framework.response import Response
 
 from analysis.api import serializers as s
 from analysis.models import AnalysisRun, Score
+from analysis.pipeline import matrix_record
 from analysis.selectors import SCORE_FILTERS, current_run, lab_matrices, run_matrices, run_scores
 from analysis.services import analysis_run_start
 from labs.api.permissions import ComparisonAccess
@@ -134,11 +135,9 @@ class CompatibilityView(ApiView):
         params = dict(query.validated_data)
         factor = params.pop("factor")
         if factor == "lab":
-            data = [s.matrix_dict(m) for m in lab_matrices(access.comparison, params)]
+            data = [matrix_record(m) for m in lab_matrices(access.comparison, params)]
         else:
-            data = [
-                s.stored_matrix_dict(m) for m in run_matrices(shown_run(access), factor, params)
-            ]
+            data = [m.record() for m in run_matrices(shown_run(access), factor, params)]
         return Response(data)
 
 
