@@ -1,0 +1,116 @@
+"""Result containers of the benches and the helpers both benches share."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from analysis.core.groups import FloatArray
+from analysis.core.signals.budget import Budget
+from analysis.core.signals.records import MEMS_AXES, Record, SignalInputError
+
+OK = "ok"
+TOO_SMALL = "component too small"
+CLIPPED = "clipped"
+NOT_EXCITED = "not excited"
+
+
+@dataclass(frozen=True)
+class AxisResult:
+    """Sensitivity of one MEMS axis at one mounting (formats.md §5 ``axes`` entry)."""
+
+    axis: str
+    direction: str
+    frequency_hz: float
+    analysis_frequency_hz: float
+    output_amplitude: float | None
+    reference_amplitude_m_s2: float | None
+    sensitivity: float | None
+    budget: Budget | None
+    status: str = OK
+    note: str = ""
+
+    @property
+    def standard_uncertainty(self) -> float | None:
+        return self.budget.combined if self.budget else None
+
+    def to_dict(self) -> dict[str, Any]:
+        b = self.budget
+        return {
+            "axis": self.axis.upper(),
+            "direction": self.direction,
+            "frequency_hz": self.frequency_hz,
+            "analysis_frequency_hz": self.analysis_frequency_hz,
+            "output_amplitude": self.output_amplitude,
+            "reference_amplitude_m_s2": self.reference_amplitude_m_s2,
+            "sensitivity": self.sensitivity,
+            "standard_uncertainty": self.standard_uncertainty,
+            "expanded_uncertainty": b.expanded if b else None,
+            "coverage_factor": b.k if b else None,
+            "budget": b.to_dict()["components"] if b else [],
+            "status": self.status,
+            "note": self.note,
+        }
+
+
+@dataclass(frozen=True)
+class SensitivityResult:
+    """Everything ``pt_sensitivity`` reports for one record."""
+
+    bench: str
+    method: str
+    fs_hz: float
+    u_fs_hz: float
+    frequency_hz: float
+    reference_source: str
+    axes: list[AxisResult]
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "fs_hz": self.fs_hz,
+            "u_fs_hz": self.u_fs_hz,
+            "method": self.method,
+            "bench": self.bench,
+            "frequency_hz": self.frequency_hz,
+            "reference_source": self.reference_source,
+            "axes": [a.to_dict() for a in self.axes],
+            "notes": self.notes,
+        }
+
+
+def need(meta: dict[str, Any], key: str, where: str, why: str) -> Any:
+    if key not in meta:
+        raise SignalInputError(f"{where}: {key} is needed ({why})")
+    return meta[key]
+
+
+def usable_axes(record: Record) -> tuple[list[str], list[str]]:
+    """(MEMS axes present and not clipped, clipped ones)."""
+    present = [a for a in MEMS_AXES if a in record.channels]
+    if not present:
+        raise SignalInputError(f"{record.name}: no MEMS axis channel (x, y or z)")
+    clipped = [a for a in present if a in record.clipped]
+    return [a for a in present if a not in clipped], clipped
+
+
+def clipped_result(record: Record, axis: str, direction: str, f: float) -> AxisResult:
+    count, first = record.clipped[axis]
+    return AxisResult(
+        axis,
+        direction,
+        f,
+        f,
+        None,
+        None,
+        None,
+        None,
+        CLIPPED,
+        f"{count} samples at the int16 rail, the first at sample {first}: saturated, not used",
+    )
+
+
+def rows(record: Record, names: list[str]) -> FloatArray:
+    return np.asarray(record.data[[record.channels.index(n) for n in names]], dtype=np.float64)
