@@ -1,6 +1,7 @@
 from django.contrib import admin
 
 from analysis.models import (
+    AnalysisChunk,
     AnalysisRun,
     AssignedValue,
     CompatibilityMatrix,
@@ -15,6 +16,15 @@ class AnalysisRunAdmin(admin.ModelAdmin):
     list_display = ["id", "comparison", "status", "progress", "stage", "created_at", "finished_at"]
     list_filter = ["status", "comparison"]
     search_fields = ["comparison__code", "error"]
+
+
+@admin.register(AnalysisChunk)
+class AnalysisChunkAdmin(admin.ModelAdmin):
+    list_display = ["run", "index", "n_results", "done", "attempts", "seconds", "peak_rss_kb"]
+    list_filter = ["done", "run__comparison"]
+    search_fields = ["run__comparison__code"]
+    raw_id_fields = ["run"]
+    readonly_fields = ["moments"]
 
 
 @admin.register(AssignedValue)

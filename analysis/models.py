@@ -39,6 +39,11 @@ class AnalysisRun(models.Model):
     created_at = models.DateTimeField(auto_now_add=True)
     started_at = models.DateTimeField(null=True, blank=True)
     finished_at = models.DateTimeField(null=True, blank=True)
+    chunks_total = models.PositiveIntegerField(default=0, help_text="chunks of points planned")
+    chunks_done = models.PositiveIntegerField(default=0, help_text="chunks stored so far")
+    peak_rss_kb = models.PositiveBigIntegerField(
+        null=True, blank=True, help_text="largest worker peak RSS (KiB) seen by its tasks"
+    )
 
     class Meta:
         ordering = ["-created_at"]
@@ -48,6 +53,36 @@ class AnalysisRun(models.Model):
 
     def __str__(self) -> str:
         return f"Run {self.pk} of {self.comparison.code} ({self.status})"
+
+
+class AnalysisChunk(models.Model):
+    """One chunk of a fanned-out run: the measurement points ``first_point_id`` to
+    ``last_point_id`` (those of the comparison with accepted results), analysed by one task.
+
+    ``moments`` keeps per point n, Σx, Σu and M2 (``analysis.core.pooled``): the final
+    step pools them into the compatibility matrices without reading the results again.
+    """
+
+    run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="chunks")
+    index = models.PositiveIntegerField()
+    first_point_id = models.BigIntegerField()
+    last_point_id = models.BigIntegerField()
+    n_results = models.PositiveIntegerField(default=0)
+    done = models.BooleanField(default=False)
+    attempts = models.PositiveSmallIntegerField(default=0)
+    moments = models.JSONField(default=dict, blank=True)
+    peak_rss_kb = models.PositiveBigIntegerField(null=True, blank=True)
+    seconds = models.FloatField(null=True, blank=True)
+    finished_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["run", "index"]
+        constraints = [
+            models.UniqueConstraint(fields=["run", "index"], name="chunk_once_per_run"),
+        ]
+
+    def __str__(self) -> str:
+        return f"chunk {self.index} of run {self.run_id}"
 
 
 class AssignedValue(models.Model):
@@ -76,8 +111,17 @@ class AssignedValue(models.Model):
 class Score(models.Model):
     """Scores of one result in one run (ISO 13528 §9); flags as labels."""
 
-    run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="scores")
-    result = models.ForeignKey(Result, on_delete=models.CASCADE, related_name="scores")
+    # Bulk-written (a million rows per run): the (run, result) unique index serves lookups
+    # by run, so no second index on run; and no database-level foreign key on result,
+    # whose per-row check at commit locks every result row (FOR KEY SHARE) and took more
+    # time than the COPY itself.  Django still cascades deletes of results to their scores,
+    # and the final step of a run checks that every score's result exists.
+    run = models.ForeignKey(
+        AnalysisRun, on_delete=models.CASCADE, related_name="scores", db_index=False
+    )
+    result = models.ForeignKey(
+        Result, on_delete=models.CASCADE, related_name="scores", db_constraint=False
+    )
     d = models.FloatField()
     d_percent = models.FloatField()
     en = models.FloatField()

@@ -6,8 +6,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from django.db.models import QuerySet
+from django.db.models import Count, QuerySet
 
+from analysis.bulk import read_columns
 from analysis.core.compatibility import compatibility_matrices
 from analysis.core.groups import Groups
 from analysis.models import AnalysisRun, CompatibilityMatrix, Score
@@ -17,19 +18,13 @@ from labs.selectors import current_submissions
 from proficiency.errors import ValidationFailed
 from proficiency.models import AssignedValueMethod, Comparison, MeasurementPoint
 
-_FIELDS = (
-    "id",
-    "measurement_point_id",
-    "submission__participant__code",
-    "submission__participant__is_reference",
-    "measurement_point__device__name",
-    "measurement_point__axis",
-    "measurement_point__frequency_hz",
-    "measurement_point__bench",
-    "measurement_point__direction",
-    "value",
-    "expanded_uncertainty",
-    "coverage_factor",
+_RESULT_COLUMNS = (
+    ("id", "i8"),
+    ("measurement_point_id", "i8"),
+    ("submission__participant_id", "i8"),
+    ("value", "f8"),
+    ("expanded_uncertainty", "f8"),
+    ("coverage_factor", "f8"),
 )
 
 
@@ -45,37 +40,87 @@ class LoadedRound:
     points: list[MeasurementPoint]  # one per group
 
 
-def load_round(comparison: Comparison) -> LoadedRound:
-    """One query for all current accepted results (no model instances per result)."""
-    rows = list(
-        Result.objects.filter(
-            submission__in=current_submissions(comparison, (Submission.Status.ACCEPTED,))
+def accepted_results(comparison: Comparison) -> QuerySet[Result]:
+    """The current accepted results of a comparison (latest accepted version per lab)."""
+    return Result.objects.filter(
+        submission__in=current_submissions(comparison, (Submission.Status.ACCEPTED,))
+    )
+
+
+def point_result_counts(comparison: Comparison) -> tuple[np.ndarray, np.ndarray]:
+    """Ids of the points with accepted results (ascending) and their result counts."""
+    rows = (
+        accepted_results(comparison)
+        .values_list("measurement_point_id")
+        .annotate(n=Count("id"))
+        .order_by("measurement_point_id")
+    )
+    ids, counts = read_columns(rows, ("i8", "i8"))
+    return ids, counts
+
+
+def load_round(
+    comparison: Comparison, first_point_id: int | None = None, last_point_id: int | None = None
+) -> LoadedRound:
+    """Accepted results of all points, or of the point ids ``first..last``, with one query
+    read straight into numpy arrays (binary COPY on PostgreSQL, no model instances).
+
+    Rows are ordered by point, then participant code: every path (one task, or chunks)
+    feeds the core the same rows in the same order, so sums round the same way.
+    """
+    qs = accepted_results(comparison)
+    if first_point_id is not None:
+        qs = qs.filter(
+            measurement_point_id__gte=first_point_id, measurement_point_id__lte=last_point_id
         )
-        .order_by("measurement_point_id", "submission__participant__code")
-        .values_list(*_FIELDS)
-    )
-    cols = list(zip(*rows, strict=True)) if rows else [()] * len(_FIELDS)
-    table = ResultTable(
-        lab=np.array(cols[2], dtype=np.str_),
-        device=np.array(cols[4], dtype=np.str_),
-        axis=np.array(cols[5], dtype=np.str_),
-        frequency_hz=np.array(cols[6], dtype=np.float64),
-        bench=np.array(cols[7], dtype=np.str_),
-        direction=np.array(cols[8], dtype=np.str_),
-        value=np.array(cols[9], dtype=np.float64),
-        expanded_uncertainty=np.array(cols[10], dtype=np.float64),
-        coverage_factor=np.array(cols[11], dtype=np.float64),
-    )
-    point_of_result = np.array(cols[1], dtype=np.int64)
-    point_ids, index = np.unique(point_of_result, return_inverse=True)
+    names, kinds = zip(*_RESULT_COLUMNS, strict=True)
+    rid, pid, part, value, big_u, k = read_columns(qs.order_by().values_list(*names), kinds)
+    codes, is_ref, sorted_ids, rank_of_sorted = _participants(comparison)
+    lab = rank_of_sorted[np.searchsorted(sorted_ids, part)]
+    order = np.lexsort((lab, pid))
+    rid, pid, lab, value, big_u, k = (a[order] for a in (rid, pid, lab, value, big_u, k))
+    point_ids, index = np.unique(pid, return_inverse=True)
     by_id = MeasurementPoint.objects.select_related("device").in_bulk(point_ids.tolist())
+    points = [by_id[int(i)] for i in point_ids]
+    index = index.reshape(-1)
     return LoadedRound(
-        table=table,
-        result_id=np.array(cols[0], dtype=np.int64),
-        is_reference=np.array(cols[3], dtype=bool),
-        groups=Groups.from_index(index.reshape(-1), point_ids.size),
+        table=_table(points, index, codes[lab], value, big_u, k),
+        result_id=rid,
+        is_reference=is_ref[lab],
+        groups=Groups.from_index(index, point_ids.size),
         point_ids=point_ids,
-        points=[by_id[int(i)] for i in point_ids],
+        points=points,
+    )
+
+
+def _participants(comparison: Comparison) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Participants ranked by code: codes and reference flags by rank, plus the ids sorted
+    ascending with the rank of each (for ``searchsorted`` lookups of result rows)."""
+    rows = sorted(comparison.participants.values_list("code", "is_reference", "id"))
+    codes = np.array([r[0] for r in rows], dtype=np.str_)
+    is_ref = np.array([r[1] for r in rows], dtype=bool)
+    ids = np.array([r[2] for r in rows], dtype=np.int64)
+    rank_of_sorted = np.argsort(ids)
+    return codes, is_ref, ids[rank_of_sorted], rank_of_sorted
+
+
+def _table(
+    points: list[MeasurementPoint], index: np.ndarray, lab: np.ndarray, value: np.ndarray,
+    big_u: np.ndarray, k: np.ndarray,
+) -> ResultTable:  # fmt: skip
+    def per_point(get: Any, dtype: Any = np.str_) -> np.ndarray:
+        return np.array([get(p) for p in points], dtype=dtype)[index]
+
+    return ResultTable(
+        lab=lab,
+        device=per_point(lambda p: p.device.name),
+        axis=per_point(lambda p: p.axis),
+        frequency_hz=per_point(lambda p: p.frequency_hz, np.float64),
+        bench=per_point(lambda p: p.bench),
+        direction=per_point(lambda p: p.direction),
+        value=value,
+        expanded_uncertainty=big_u,
+        coverage_factor=k,
     )
 
 

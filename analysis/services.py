@@ -3,41 +3,62 @@
 ``analysis_run_start`` creates the run under a lock on the comparison and
 enqueues the Celery task after the transaction commits.  The task calls
 ``analysis_run_execute``, which claims the run with a conditional UPDATE (two
-workers never run the same job), loads the accepted results in one query,
-calls the core once for all measurement points and writes every output in one
-transaction after deleting the run's previous outputs, under unique
-constraints: a second delivery replaces, never duplicates.
+workers never run the same job) and splits the measurement points that have
+accepted results into chunks of about ``ANALYSIS_CHUNK_RESULTS`` results.  One
+chunk (a small round) runs in the same task; more fan out as a Celery chord: a
+group of ``analysis_chunk_execute`` tasks, then ``analysis_run_finish``.
+
+Everything a chunk computes is per measurement point (assigned values, σ_pt,
+scores), so chunks are independent.  A chunk stores its assigned values and
+scores, and the per-point moments the compatibility matrices need, in one
+transaction under a lock on its chunk row that also marks it done and counts it
+on the run (``F()``): a redelivered or retried chunk is a no-op once done and is
+redone alone otherwise; unique constraints forbid duplicates.  The final step
+pools the moments of all chunks into the matrices (``analysis.core.pooled``,
+the only cross-point work) and marks the run succeeded.  The single-task path is
+the same code with one chunk, so both give identical numbers.
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import logging
+import resource
+import time
 from typing import Any
 
 import numpy as np
+from django.conf import settings
 from django.contrib.auth.models import AbstractBaseUser
-from django.db import connection, transaction
+from django.db import transaction
+from django.db.models import F, Value
+from django.db.models.functions import Coalesce, Greatest
 from django.utils import timezone
 
 import proficiency
 from analysis.core.groups import CoreInputError
-from analysis.core.scores import FLAG_LABELS
-from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
+from analysis.core.pooled import compatibility_matrices_pooled, moments
+from analysis.models import AnalysisChunk, AnalysisRun, AssignedValue, CompatibilityMatrix, Score
+from analysis.outputs import (
+    BATCH,
+    assigned_rows,
+    matrix_rows,
+    moments_from_json,
+    moments_json,
+    write_scores,
+)
 from analysis.pipeline import (
     FACTORS,
     Analysis,
     SigmaPtSpec,
     analyse_grouped,
     assigned_values_mixed,
-    json_value,
-    matrix_record,
-    point_method_of,
     sigma_pt_values,
 )
-from analysis.selectors import LoadedRound, load_round, point_spec
+from analysis.selectors import LoadedRound, load_round, point_result_counts, point_spec
+from labs.selectors import current_submissions
 from proficiency.errors import ApplicationError, StateConflict, ValidationFailed
-from proficiency.models import Comparison, ComparisonStatus, SigmaPtMode
+from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint, SigmaPtMode
 
 log = logging.getLogger(__name__)
 R = AnalysisRun.Status
@@ -46,7 +67,6 @@ R = AnalysisRun.Status
 # computed on request for the points asked for, never stored for the whole round.
 STORED_FACTORS = tuple(f for f in FACTORS if f != "lab")
 STALE_AFTER = dt.timedelta(hours=1)  # a "running" run older than this was lost with its worker
-BATCH = 5000
 
 
 def analysis_run_start(
@@ -85,7 +105,8 @@ def _parameters(c: Comparison) -> dict[str, Any]:
 def _claim(run_id: int) -> bool:
     """pending → running, or take over a running run whose worker was lost."""
     now = timezone.now()
-    fresh = {"status": R.RUNNING, "started_at": now, "progress": 1, "error": ""}
+    fresh = {"status": R.RUNNING, "started_at": now, "progress": 1, "error": "",
+             "chunks_total": 0, "chunks_done": 0}  # fmt: skip
     if AnalysisRun.objects.filter(pk=run_id, status=R.PENDING).update(**fresh):
         return True
     stale = AnalysisRun.objects.filter(
@@ -94,59 +115,235 @@ def _claim(run_id: int) -> bool:
     return bool(stale.update(**fresh))
 
 
-def _stage(run_id: int, stage: str, progress: int) -> None:
-    AnalysisRun.objects.filter(pk=run_id).update(stage=stage, progress=progress)
+def _stage(run_id: int, stage: str, progress: int | None = None) -> None:
+    fields: dict[str, Any] = {"stage": stage}
+    if progress is not None:
+        fields["progress"] = progress
+    AnalysisRun.objects.filter(pk=run_id, status=R.RUNNING).update(**fields)
 
 
-def analysis_run_execute(*, run_id: int) -> str:
-    """Run the analysis of ``run_id`` if this worker can claim it; returns the final status."""
+def analysis_run_execute(*, run_id: int, queue: str | None = None) -> str:
+    """Claim ``run_id`` and analyse it: in this task (one chunk) or fanned out (a chord
+    sent to ``queue``, else the default queue).
+
+    Returns the run's status when this task ends ("running" while chunks are queued).
+    """
     if not _claim(run_id):
         return AnalysisRun.objects.get(pk=run_id).status
-    run = AnalysisRun.objects.select_related("comparison").get(pk=run_id)
     try:
-        _stage(run_id, "loading results", 10)
-        loaded = load_round(run.comparison)
-        analysis = _compute(run, loaded)
-        _stage(run_id, "saving", 80)
-        _save(run, loaded, analysis)
-    except (ApplicationError, CoreInputError) as exc:
-        return _fail(run_id, str(getattr(exc, "message", exc)))
+        n_chunks = _plan(AnalysisRun.objects.select_related("comparison").get(pk=run_id))
+    except ApplicationError as exc:
+        return _fail(run_id, exc.message)
     except Exception as exc:  # any other error is shown too, never a silent stuck run
         log.exception("analysis run %s failed", run_id)
         return _fail(run_id, f"{type(exc).__name__}: {exc}")
-    return R.SUCCEEDED
+    if n_chunks == 1:
+        if analysis_chunk_execute(run_id=run_id, index=0) != R.RUNNING:
+            return AnalysisRun.objects.get(pk=run_id).status
+        return analysis_run_finish(run_id=run_id)
+    _stage(run_id, f"analysing {n_chunks} chunks", 5)
+    _dispatch(run_id, n_chunks, queue)
+    return AnalysisRun.objects.get(pk=run_id).status
+
+
+def _dispatch(run_id: int, n_chunks: int, queue: str | None) -> None:
+    from celery import chord
+
+    from analysis.tasks import analysis_chunk_task, analysis_finish_task
+
+    options = {"queue": queue} if queue else {}
+    header = [analysis_chunk_task.si(run_id, i).set(**options) for i in range(n_chunks)]
+    chord(header)(analysis_finish_task.si(run_id).set(**options))
+
+
+@transaction.atomic
+def _plan(run: AnalysisRun) -> int:
+    """Split the points with accepted results into chunks of about ANALYSIS_CHUNK_RESULTS
+    results (whole points, ascending ids); replaces an earlier plan and its outputs."""
+    comparison = run.comparison
+    point_ids, counts = point_result_counts(comparison)
+    if point_ids.size == 0:
+        raise ValidationFailed(f"Comparison {comparison.code} has no accepted results to analyse.")
+    for model in (AssignedValue, Score, CompatibilityMatrix, AnalysisChunk):
+        model.objects.filter(run=run).delete()
+    budget = max(1, int(settings.ANALYSIS_CHUNK_RESULTS))
+    chunk_of = (np.cumsum(counts) - counts) // budget  # a point is never split
+    _, first = np.unique(chunk_of, return_index=True)
+    last = np.append(first[1:], point_ids.size) - 1
+    AnalysisChunk.objects.bulk_create(
+        AnalysisChunk(run=run, index=i, first_point_id=int(point_ids[a]),
+                      last_point_id=int(point_ids[b]), n_results=int(counts[a : b + 1].sum()))
+        for i, (a, b) in enumerate(zip(first.tolist(), last.tolist(), strict=True))
+    )  # fmt: skip
+    AnalysisRun.objects.filter(pk=run.pk).update(chunks_total=first.size, chunks_done=0)
+    return int(first.size)
 
 
 def _fail(run_id: int, message: str) -> str:
-    AnalysisRun.objects.filter(pk=run_id).update(
+    AnalysisRun.objects.filter(pk=run_id, status__in=(R.PENDING, R.RUNNING)).update(
         status=R.FAILED, error=message, finished_at=timezone.now()
     )
     return R.FAILED
 
 
+def analysis_chunk_execute(*, run_id: int, index: int) -> str:
+    """Analyse one chunk of a running run and store its outputs; a done chunk is a no-op.
+
+    Returns "running" when the chunk is stored (or was already), else the run's status.
+    """
+    chunks = AnalysisChunk.objects.select_related("run__comparison")
+    chunk = chunks.filter(run_id=run_id, index=index).first()
+    if chunk is None or chunk.run.status != R.RUNNING or chunk.done:  # None: re-planned
+        return AnalysisRun.objects.get(pk=run_id).status
+    run = chunk.run
+    AnalysisChunk.objects.filter(pk=chunk.pk).update(attempts=F("attempts") + 1)
+    t0 = time.perf_counter()
+    try:
+        if run.chunks_total == 1:
+            _stage(run_id, "loading results", 10)
+        loaded = load_round(run.comparison, chunk.first_point_id, chunk.last_point_id)
+        analysis = _compute(run, loaded)
+        _save_chunk(run, chunk, loaded, analysis, t0)
+    except (ApplicationError, CoreInputError) as exc:
+        return _fail(run_id, str(getattr(exc, "message", exc)))
+    except Exception as exc:  # any other error is shown too, never a silent stuck run
+        log.exception("analysis run %s, chunk %s failed", run_id, index)
+        return _fail(run_id, f"{type(exc).__name__}: {exc}")
+    return R.RUNNING
+
+
+def peak_rss_kb() -> int:
+    """This process's peak resident set size so far, in KiB.
+
+    Linux: ``VmHWM`` of /proc/self/status, the high-water mark of this process's own
+    memory; ``ru_maxrss`` is kept across ``execve`` and so starts at the RSS of the
+    process that forked the worker.  Elsewhere ``ru_maxrss``.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1])
+    except OSError:
+        pass
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+
+
+@transaction.atomic
+def _save_chunk(
+    run: AnalysisRun, chunk: AnalysisChunk, loaded: LoadedRound, a: Analysis, t0: float
+) -> None:
+    """Store one chunk's outputs, mark it done and count it on the run, atomically."""
+    locked = AnalysisChunk.objects.select_for_update().get(pk=chunk.pk)
+    if locked.done:  # a concurrent delivery stored it while this one computed
+        return
+    span = {"gte": chunk.first_point_id, "lte": chunk.last_point_id}
+    points = {f"measurement_point_id__{op}": v for op, v in span.items()}
+    stale, _ = AssignedValue.objects.filter(run=run, **points).delete()
+    if stale:  # outputs without the done mark: not expected, but never duplicated
+        Score.objects.filter(run=run, **{f"result__{k}": v for k, v in points.items()}).delete()
+    AssignedValue.objects.bulk_create(assigned_rows(run, loaded, a), batch_size=BATCH)
+    write_scores(run.pk, loaded, a)
+    # Score.result has no database-level foreign key (see the model): one join per chunk
+    # checks that every result scored still exists, instead of one locking check per row.
+    scored = Score.objects.filter(run=run, **{f"result__{k}": v for k, v in points.items()})
+    if scored.count() != loaded.result_id.size:
+        raise StateConflict(
+            "Results of this comparison were deleted while the analysis ran; start it again."
+        )
+    rss = peak_rss_kb()
+    m = moments(loaded.table.value, loaded.table.standard_uncertainty, loaded.groups)
+    AnalysisChunk.objects.filter(pk=chunk.pk).update(
+        done=True, moments=moments_json(loaded.point_ids, m), peak_rss_kb=rss,
+        seconds=time.perf_counter() - t0, finished_at=timezone.now(),
+    )  # fmt: skip
+    AnalysisRun.objects.filter(pk=run.pk, status=R.RUNNING).update(
+        chunks_done=F("chunks_done") + 1,
+        progress=Value(5) + (F("chunks_done") + 1) * 90 / F("chunks_total"),
+        peak_rss_kb=Greatest(Coalesce(F("peak_rss_kb"), Value(0)), Value(rss)),
+    )
+
+
+def analysis_run_finish(*, run_id: int) -> str:
+    """The final step: pool the chunks' moments into compatibility matrices, store them and
+    mark the run succeeded (a run that failed or finished already is left as it is)."""
+    run = AnalysisRun.objects.select_related("comparison").get(pk=run_id)
+    if run.status != R.RUNNING:
+        return run.status
+    chunks = list(AnalysisChunk.objects.filter(run=run).order_by("index"))
+    missing = [c.index for c in chunks if not c.done]
+    if missing or len(chunks) != run.chunks_total or not chunks:
+        return _fail(run_id, f"Chunks {missing} of this run were not stored; start it again.")
+    try:
+        _stage(run_id, "compatibility", 96)
+        matrices = _matrices(run, [c.moments for c in chunks])
+        _finish(run, matrices)
+    except (ApplicationError, CoreInputError) as exc:
+        return _fail(run_id, str(getattr(exc, "message", exc)))
+    except Exception as exc:
+        log.exception("analysis run %s failed in its final step", run_id)
+        return _fail(run_id, f"{type(exc).__name__}: {exc}")
+    return R.SUCCEEDED
+
+
+def _matrices(run: AnalysisRun, parts: list[dict]) -> list:
+    point_ids, m = moments_from_json(parts)
+    rows = MeasurementPoint.objects.filter(pk__in=point_ids.tolist()).values_list(
+        "pk", "device__name", "axis", "frequency_hz", "bench", "direction"
+    )
+    by_id = {r[0]: r[1:] for r in rows}
+    cols = list(zip(*(by_id[int(p)] for p in point_ids), strict=True))
+    labels = {
+        "device": np.array(cols[0], dtype=np.str_),
+        "axis": np.array(cols[1], dtype=np.str_),
+        "frequency_hz": np.array(cols[2], dtype=np.float64),
+        "bench": np.array(cols[3], dtype=np.str_),
+        "direction": np.array(cols[4], dtype=np.str_),
+    }
+    limit = run.comparison.en_limit
+    return [
+        mat
+        for factor in run.parameters.get("compare", STORED_FACTORS)
+        for mat in compatibility_matrices_pooled(labels, m, factor, limit=limit)
+    ]
+
+
+@transaction.atomic
+def _finish(run: AnalysisRun, matrices: list) -> None:
+    CompatibilityMatrix.objects.filter(run=run).delete()
+    CompatibilityMatrix.objects.bulk_create(matrix_rows(run, matrices), batch_size=BATCH)
+    AnalysisRun.objects.filter(pk=run.pk, status=R.RUNNING).update(
+        status=R.SUCCEEDED, progress=100, stage="done", finished_at=timezone.now(),
+        peak_rss_kb=Greatest(Coalesce(F("peak_rss_kb"), Value(0)), Value(peak_rss_kb())),
+    )  # fmt: skip
+    Comparison.objects.filter(pk=run.comparison_id, status=ComparisonStatus.CLOSED).update(
+        status=ComparisonStatus.ANALYSED
+    )
+
+
 def _compute(run: AnalysisRun, loaded: LoadedRound) -> Analysis:
-    comparison, table = run.comparison, loaded.table
-    if table.value.size == 0:
-        raise ValidationFailed(f"Comparison {comparison.code} has no accepted results to analyse.")
-    reference = _reference_code(loaded)
+    comparison = run.comparison
+    reference = _reference_code(comparison)
     specs = [point_spec(comparison, p, reference) for p in loaded.points]
     _check_specs(specs, loaded)
     keys = [(p.device.name, p.axis, p.frequency_hz, p.bench, p.direction) for p in loaded.points]
-    _stage(run.pk, "assigned values", 30)
-    values = assigned_values_mixed(table, loaded.groups, keys, specs)
+    values = assigned_values_mixed(loaded.table, loaded.groups, keys, specs)
     sigma = _sigma(comparison, loaded, values)
-    _stage(run.pk, "scores", 50)
-    compare = [(f, None) for f in run.parameters.get("compare", STORED_FACTORS)]
-    _stage(run.pk, "compatibility", 65)
     return analyse_grouped(
-        table, loaded.groups, keys, values, sigma=sigma, en_limit=comparison.en_limit,
-        compare=compare,
-    )  # fmt: skip
+        loaded.table, loaded.groups, keys, values, sigma=sigma, en_limit=comparison.en_limit
+    )
 
 
-def _reference_code(loaded: LoadedRound) -> str:
-    codes = sorted(set(loaded.table.lab[loaded.is_reference].tolist()))
-    return codes[0] if codes else ""
+def _reference_code(comparison: Comparison) -> str:
+    """The reference laboratory's code: the first by code among current accepted ones."""
+    code = (
+        current_submissions(comparison)
+        .filter(participant__is_reference=True)
+        .order_by("participant__code")
+        .values_list("participant__code", flat=True)
+        .first()
+    )
+    return code or ""
 
 
 def _check_specs(specs: list, loaded: LoadedRound) -> None:
@@ -168,100 +365,3 @@ def _sigma(comparison: Comparison, loaded: LoadedRound, values: Any) -> np.ndarr
     sigma = sigma_pt_values(loaded.table.value, loaded.groups, values, spec)
     override = np.array([p.sigma_pt_value or np.nan for p in loaded.points], dtype=float)
     return np.where(np.isfinite(override), override, sigma)
-
-
-@transaction.atomic
-def _save(run: AnalysisRun, loaded: LoadedRound, analysis: Analysis) -> None:
-    """Replace this run's outputs in one transaction; mark it succeeded."""
-    for model in (AssignedValue, Score, CompatibilityMatrix):
-        model.objects.filter(run=run).delete()
-    AssignedValue.objects.bulk_create(_assigned_rows(run, loaded, analysis), batch_size=BATCH)
-    if connection.vendor == "postgresql":
-        _copy_scores(run, loaded, analysis)
-    else:
-        Score.objects.bulk_create(_score_rows(run, loaded, analysis), batch_size=BATCH)
-    CompatibilityMatrix.objects.bulk_create(_matrix_rows(run, analysis), batch_size=BATCH)
-    AnalysisRun.objects.filter(pk=run.pk).update(
-        status=R.SUCCEEDED, progress=100, stage="done", finished_at=timezone.now()
-    )
-    Comparison.objects.filter(pk=run.comparison_id, status=ComparisonStatus.CLOSED).update(
-        status=ComparisonStatus.ANALYSED
-    )
-
-
-def _assigned_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[AssignedValue]:
-    v = a.assigned
-    diag = {k: arr for k, arr in v.diagnostics.items() if not k.startswith("_") and k != "method"}
-    return [
-        AssignedValue(
-            run=run,
-            measurement_point_id=int(pid),
-            value=float(v.value[g]),
-            standard_uncertainty=float(v.standard_uncertainty[g]),
-            method=point_method_of(v, g),
-            sigma_pt=json_value(float(a.sigma_pt[g])),
-            diagnostics={k: json_value(arr[g]) for k, arr in diag.items()},
-        )
-        for g, pid in enumerate(loaded.point_ids)
-    ]
-
-
-_SCORE_COLUMNS = (
-    "run_id", "result_id", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag", "z_flag",
-    "correlation_applied",
-)  # fmt: skip
-
-
-def _score_columns(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[list[Any]]:
-    """The score table as columns of Python values (NaN-free: no σ_pt → None)."""
-    s = a.scores
-    has_sigma = np.isfinite(a.sigma_pt)[loaded.groups.index]
-    labels = np.array(FLAG_LABELS, dtype=object)
-    n = loaded.result_id.size
-    return [
-        [run.pk] * n,
-        loaded.result_id.tolist(),
-        s.d.tolist(),
-        s.d_percent.tolist(),
-        s.en.tolist(),
-        s.zeta.tolist(),
-        np.where(has_sigma, s.z, None).tolist(),
-        np.where(has_sigma, s.z_prime, None).tolist(),
-        labels[s.en_flag].tolist(),
-        np.where(has_sigma, labels[s.performance_flag], "").tolist(),
-        s.correlation_applied.tolist(),
-    ]
-
-
-def _copy_scores(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> None:
-    """PostgreSQL COPY: ~20x faster than INSERTs for a million scores."""
-    cols = _score_columns(run, loaded, a)
-    sql = f"COPY analysis_score ({', '.join(_SCORE_COLUMNS)}) FROM STDIN"
-    with connection.cursor() as cur, cur.copy(sql) as copy:
-        for row in zip(*cols, strict=True):
-            copy.write_row(row)
-
-
-def _score_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[Score]:
-    cols = _score_columns(run, loaded, a)
-    return [Score(**dict(zip(_SCORE_COLUMNS, row, strict=True))) for row in zip(*cols, strict=True)]
-
-
-def _matrix_rows(run: AnalysisRun, a: Analysis) -> list[CompatibilityMatrix]:
-    rows = []
-    for rec in map(matrix_record, a.compatibility):
-        group = rec["group"]
-        rows.append(
-            CompatibilityMatrix(
-                run=run,
-                factor=rec["factor"],
-                group=group,
-                group_key=", ".join(f"{k}={v}" for k, v in group.items()) or "all",
-                levels=rec["levels"],
-                values=rec["value"],
-                expanded_uncertainties=rec["expanded_uncertainty"],
-                en=rec["en"],
-                incompatible_pairs=rec["incompatible_pairs"],
-            )
-        )
-    return rows

@@ -1,19 +1,47 @@
-"""Celery tasks of the analysis side. Tasks take ids and re-check state (safe to run twice)."""
+"""Celery tasks of the analysis side. Tasks take ids and re-check state (safe to run twice).
+
+An analysis run is ``analysis_run_task`` (claim, plan the chunks; a small round is
+analysed right there), or, for a large round, a chord of ``analysis_chunk_task`` (one
+per chunk of measurement points) whose body ``analysis_finish_task`` stores the
+compatibility matrices and marks the run done.  ``acks_late`` with
+``reject_on_worker_lost``: a chunk lost with its worker is delivered again and redone
+alone; a chunk already stored is a no-op.
+"""
 
 from celery import shared_task
 from django.conf import settings
 
 from analysis.reports.tasks import report_issue_task, reports_issue_all_task  # noqa: F401
 
+_TASK = {
+    "acks_late": True,
+    "reject_on_worker_lost": True,
+    "soft_time_limit": settings.CELERY_TASK_SOFT_TIME_LIMIT,
+    "time_limit": settings.CELERY_TASK_TIME_LIMIT,
+}
 
-@shared_task(
-    acks_late=True,
-    reject_on_worker_lost=True,
-    soft_time_limit=settings.CELERY_TASK_SOFT_TIME_LIMIT,
-    time_limit=settings.CELERY_TASK_TIME_LIMIT,
-)
-def analysis_run_task(run_id: int) -> str:
-    """Execute analysis run ``run_id`` (claimed with a conditional update)."""
+
+@shared_task(bind=True, **_TASK)
+def analysis_run_task(self, run_id: int) -> str:
+    """Execute analysis run ``run_id`` (claimed with a conditional update); its chunks go
+    to the queue this task came from."""
     from analysis.services import analysis_run_execute
 
-    return analysis_run_execute(run_id=run_id)
+    queue = (self.request.delivery_info or {}).get("routing_key")
+    return analysis_run_execute(run_id=run_id, queue=queue)
+
+
+@shared_task(**_TASK)
+def analysis_chunk_task(run_id: int, index: int) -> str:
+    """Analyse chunk ``index`` of run ``run_id`` and store its outputs."""
+    from analysis.services import analysis_chunk_execute
+
+    return analysis_chunk_execute(run_id=run_id, index=index)
+
+
+@shared_task(**_TASK)
+def analysis_finish_task(run_id: int) -> str:
+    """The chord body: compatibility matrices of run ``run_id``, then mark it done."""
+    from analysis.services import analysis_run_finish
+
+    return analysis_run_finish(run_id=run_id)

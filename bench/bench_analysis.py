@@ -1,16 +1,20 @@
-"""End-to-end analysis run on a real worker: 1,000 labs x 1,000 measurement points.
+"""End-to-end analysis runs on real worker processes: sizes x worker counts.
 
 A script, not a test.  It creates a scratch PostgreSQL database (dropped at the end),
-fills it with one closed comparison of 1,000,000 accepted results, starts one Celery
-worker process on a Redis broker, runs one analysis (load -> compute -> store) and
-reports the run's wall time with its stages, against the time PostgreSQL itself needs
-to read and write the same rows with COPY, measured in the same run.
+fills it with one closed comparison of accepted results per size (labs x points), and
+for each size and worker count starts that many Celery worker processes (``-P solo``)
+on a Redis broker, runs one analysis (plan -> chunks: load -> compute -> store ->
+matrices) and reports the run's wall time with its stages and the peak RSS of the
+workers (``ru_maxrss`` recorded by the tasks on the run row), against the time
+PostgreSQL itself needs to read and write the same rows with COPY (largest size).
 
-    .venv/bin/python bench/bench_analysis.py [--labs 1000] [--points 1000]
+    .venv/bin/python bench/bench_analysis.py [--sizes 1000x250,1000x500,1000x1000]
+                                             [--workers 1,2] [--chunk 100000]
 
 Environment: DATABASE_URL (server, default postgres://postgres@127.0.0.1:5432/test;
 the scratch database sits beside it), CELERY_BROKER_URL (default Redis on localhost).
-Target (issue 5): < 60 s on a 2-core machine.
+Targets (issue 9): 1,000,000 results < 30 s; 2 workers >= 1.6x faster than 1;
+worker peak memory < 1 GB.
 """
 
 from __future__ import annotations
@@ -27,7 +31,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 SERVER = os.environ.get("DATABASE_URL", "postgres://postgres@127.0.0.1:5432/test")
 BROKER = os.environ.get("CELERY_BROKER_URL", "redis://127.0.0.1:6379/0")
-SCRATCH = "pt_bench_analysis"
+SCRATCH = os.environ.get("BENCH_SCRATCH_DB", "pt_bench_analysis")
 SCRATCH_URL = SERVER.rsplit("/", 1)[0] + "/" + SCRATCH
 
 
@@ -57,8 +61,9 @@ def generate(n_labs: int, n_points: int) -> int:
     from proficiency.models import Comparison, Device
     from proficiency.services import measurement_points_generate
 
+    code = f"BENCH-{n_labs}x{n_points}"
     c = Comparison.objects.create(
-        code="BENCH-1", title="bench", status="closed", assigned_value_method="weighted_mean",
+        code=code, title="bench", status="closed", assigned_value_method="weighted_mean",
         sigma_pt_mode="relative", sigma_pt_value=1.0,
     )  # fmt: skip
     n_dev = 10
@@ -67,21 +72,25 @@ def generate(n_labs: int, n_points: int) -> int:
     measurement_points_generate(
         comparison=c, devices=devices, axes=["X"], frequencies_hz=freqs, benches=["linear"]
     )
-    labs = Laboratory.objects.bulk_create(Laboratory(name=f"Lab {i}") for i in range(n_labs))
+    labs = Laboratory.objects.bulk_create(Laboratory(name=f"Lab {code} {i}") for i in range(n_labs))
     parts = Participant.objects.bulk_create(
-        Participant(comparison=c, laboratory=lab, code=f"L{i:04d}") for i, lab in enumerate(labs)
+        Participant(comparison=c, laboratory=lab, code=f"L{i:05d}") for i, lab in enumerate(labs)
     )
     subs = Submission.objects.bulk_create(
         Submission(participant=p, version=1, status="accepted") for p in parts
     )
-    point_ids = list(c.measurement_points.values_list("id", flat=True))
+    point_ids = np.array(c.measurement_points.values_list("id", flat=True))
     rng = np.random.default_rng(7)
-    buf = io.StringIO()
-    for s in subs:
-        x = 420 * (1 + rng.normal(0, 0.004)) + rng.normal(0, 1.0, len(point_ids))
-        big_u = rng.uniform(4, 12, len(point_ids))
-        for pid, v, bu in zip(point_ids, x.tolist(), big_u.tolist(), strict=True):
-            buf.write(f"{s.pk}\t{pid}\t{v!r}\tD/(m/s^2)\t{bu!r}\t2.0\t\n")
+    sub_ids = np.array([s.pk for s in subs])
+    x = 420 * (1 + rng.normal(0, 0.004, (n_labs, 1))) + rng.normal(0, 1.0, (n_labs, n_points))
+    big_u = rng.uniform(4, 12, (n_labs, n_points))
+    sub = np.repeat(sub_ids, n_points)
+    pid = np.tile(point_ids, n_labs)
+    lines = "".join(
+        f"{s}\t{p}\t{v!r}\tD/(m/s^2)\t{u!r}\t2.0\t\n"
+        for s, p, v, u in zip(sub.tolist(), pid.tolist(), x.ravel().tolist(),
+                              big_u.ravel().tolist(), strict=True)
+    )  # fmt: skip
     with (
         connection.cursor() as cur,
         cur.copy(
@@ -89,12 +98,15 @@ def generate(n_labs: int, n_points: int) -> int:
             "expanded_uncertainty, coverage_factor, note) FROM STDIN"
         ) as copy,
     ):
-        copy.write(buf.getvalue())
+        copy.write(lines)
+    with connection.cursor() as cur:
+        cur.execute("VACUUM ANALYZE labs_result")
     return c.pk
 
 
-def copy_baseline() -> tuple[float, float]:
-    """Seconds for PostgreSQL to COPY out all results and COPY in as many score rows."""
+def copy_baseline(comparison_id: int) -> tuple[float, float]:
+    """Seconds for PostgreSQL to COPY out one comparison's results and COPY in as many
+    score rows (into a temporary table: no foreign keys, no index)."""
     from django.db import connection
 
     with connection.cursor() as cur:
@@ -103,7 +115,8 @@ def copy_baseline() -> tuple[float, float]:
         with cur.copy(
             "COPY (SELECT r.id, r.measurement_point_id, p.code, r.value, r.expanded_uncertainty,"
             " r.coverage_factor FROM labs_result r JOIN labs_submission s ON s.id = r.submission_id"
-            " JOIN labs_participant p ON p.id = s.participant_id) TO STDOUT"
+            " JOIN labs_participant p ON p.id = s.participant_id"
+            f" WHERE p.comparison_id = {int(comparison_id)}) TO STDOUT"
         ) as copy:
             for chunk in copy:
                 out.write(chunk)
@@ -119,10 +132,32 @@ def copy_baseline() -> tuple[float, float]:
         ) as copy:
             copy.write(data)
         write = time.perf_counter() - t0
+        cur.execute("DROP TABLE score_copy")
     return read, write
 
 
-def run_analysis(comparison_id: int) -> tuple[float, dict]:
+def start_workers(n: int, queue: str, chunk: int) -> list[subprocess.Popen]:
+    env = os.environ | {"DATABASE_URL": SCRATCH_URL, "CELERY_BROKER_URL": BROKER,
+                        "ANALYSIS_CHUNK_RESULTS": str(chunk), "DEBUG": "false",
+                        "SECRET_KEY": f"bench-{uuid.uuid4().hex}"}  # fmt: skip
+    cmd = [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-P", "solo",
+           "-Q", queue, "--loglevel=WARNING", "--without-gossip", "--without-mingle",
+           "--without-heartbeat"]  # fmt: skip
+    return [subprocess.Popen([*cmd, "-n", f"bench{i}@%h"], cwd=ROOT, env=env) for i in range(n)]
+
+
+def wait_ready(n: int, timeout: float = 60) -> None:
+    from proficiency.celery import app
+
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if len(app.control.ping(timeout=0.5) or []) >= n:
+            return
+    raise SystemExit(f"{n} worker(s) did not answer a ping within {timeout} s")
+
+
+def run_analysis(comparison_id: int, n_workers: int, chunk: int) -> dict:
+    """One run on ``n_workers`` fresh worker processes: wall time, stages, peak RSS."""
     from analysis.models import AnalysisRun, Score
     from analysis.services import analysis_run_start
     from proficiency.celery import app
@@ -130,16 +165,13 @@ def run_analysis(comparison_id: int) -> tuple[float, dict]:
 
     queue = f"bench-{uuid.uuid4().hex[:6]}"
     app.conf.task_default_queue = queue
-    env = os.environ | {"DATABASE_URL": SCRATCH_URL, "CELERY_BROKER_URL": BROKER}
-    worker = subprocess.Popen(
-        [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-P", "solo", "-Q", queue,
-         "--loglevel=WARNING", "--without-gossip", "--without-mingle", "--without-heartbeat"],
-        cwd=ROOT, env=env,
-    )  # fmt: skip
+    workers = start_workers(n_workers, queue, chunk)
     try:
-        time.sleep(3)  # let the worker connect
+        wait_ready(n_workers)
+        comparison = Comparison.objects.get(pk=comparison_id)
+        Comparison.objects.filter(pk=comparison_id).update(status="closed")
         t0 = time.perf_counter()
-        run = analysis_run_start(comparison=Comparison.objects.get(pk=comparison_id), user=None)
+        run = analysis_run_start(comparison=comparison, user=None)
         stages: dict[str, float] = {}
         last = None
         while True:
@@ -153,47 +185,82 @@ def run_analysis(comparison_id: int) -> tuple[float, dict]:
         total = time.perf_counter() - t0
         if run.status != "succeeded":
             raise SystemExit(f"run failed: {run.error}")
-        assert (
-            Score.objects.filter(run=run).count()
-            == AnalysisRun.objects.get(pk=run.pk).comparison.measurement_points.count()
-            * run.comparison.participants.count()
-        )
-        return total, stages
+        n = comparison.measurement_points.count() * comparison.participants.count()
+        assert Score.objects.filter(run=run).count() == n
+        chunks = list(run.chunks.order_by("index").values_list("seconds", "peak_rss_kb"))
+        AnalysisRun.objects.filter(pk=run.pk).delete()  # keep the score table small
+        return {"total": total, "stages": stages, "rss_mb": run.peak_rss_kb / 1024,
+                "chunks": len(chunks), "chunk_s": sum(c[0] for c in chunks),
+                "chunk_rss_mb": [c[1] // 1024 for c in chunks]}  # fmt: skip
     finally:
-        worker.terminate()
-        worker.wait(timeout=30)
+        for w in workers:
+            w.terminate()
+        for w in workers:
+            w.wait(timeout=30)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--labs", type=int, default=1000)
-    ap.add_argument("--points", type=int, default=1000)
+    ap.add_argument("--sizes", default="1000x250,1000x500,1000x1000", help="LABSxPOINTS,...")
+    ap.add_argument("--workers", default="1,2")
+    ap.add_argument("--chunk", type=int, default=100_000, help="ANALYSIS_CHUNK_RESULTS")
+    ap.add_argument("--keep", action="store_true", help="keep the scratch database")
     args = ap.parse_args()
+    sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
+    worker_counts = [int(w) for w in args.workers.split(",")]
     admin_sql(f"DROP DATABASE IF EXISTS {SCRATCH} WITH (FORCE)")
     admin_sql(f"CREATE DATABASE {SCRATCH}")
+    rows = []
     try:
         env = os.environ | {"DATABASE_URL": SCRATCH_URL}
         subprocess.run([sys.executable, "manage.py", "migrate", "-v0"], cwd=ROOT, env=env,
                        check=True)  # fmt: skip
         setup_django()
-        t0 = time.perf_counter()
-        cid = generate(args.labs, args.points)
-        print(f"generated {args.labs} labs x {args.points} points in "
-              f"{time.perf_counter() - t0:.1f} s")  # fmt: skip
-        read, write = copy_baseline()
-        total, stages = run_analysis(cid)
+        for labs, points in sizes:
+            t0 = time.perf_counter()
+            cid = generate(labs, points)
+            print(f"generated {labs} labs x {points} points in {time.perf_counter() - t0:.1f} s",
+                  flush=True)  # fmt: skip
+            for w in worker_counts:
+                r = run_analysis(cid, w, args.chunk)
+                rows.append((labs, points, w, r))
+                print(f"  {labs * points:>9,} results, {w} worker(s): {r['total']:.1f} s, "
+                      f"{r['chunks']} chunks ({r['chunk_s']:.1f} s in chunk tasks), peak RSS "
+                      f"{r['rss_mb']:.0f} MiB; stages: "
+                      + ", ".join(f"{k} {v:.1f}" for k, v in r["stages"].items())
+                      + f"; chunk peak RSS (MiB) {r['chunk_rss_mb']}",
+                      flush=True)  # fmt: skip
+        read, write = copy_baseline(cid)
+        print(f"COPY baseline ({labs * points:,} results): read {read:.1f} s + write {write:.1f} s")
     finally:
         if "django" in sys.modules:
             from django.db import connections
 
             connections.close_all()
-        admin_sql(f"DROP DATABASE IF EXISTS {SCRATCH} WITH (FORCE)")
-    n = args.labs * args.points
-    print(f"analysis run, {n:,} results, one worker: {total:.1f} s "
-          f"(target < 60 s: {'PASS' if total < 60 else 'FAIL'})")  # fmt: skip
-    print("  stage reached at (s): " + ", ".join(f"{k} {v:.1f}" for k, v in stages.items()))
-    print(f"COPY baseline: read {read:.1f} s + write {write:.1f} s = {read + write:.1f} s; "
-          f"run / COPY = {total / (read + write):.1f}x")  # fmt: skip
+        if not args.keep:
+            admin_sql(f"DROP DATABASE IF EXISTS {SCRATCH} WITH (FORCE)")
+    summarise(rows, worker_counts)
+
+
+def summarise(rows: list, worker_counts: list[int]) -> None:
+    import numpy as np
+
+    by = {(labs * points, w): r["total"] for labs, points, w, r in rows}
+    sizes = sorted({n for n, _ in by})
+    for w in worker_counts:
+        t = [by[(n, w)] for n in sizes]
+        if len(sizes) > 1:
+            slope = np.polyfit(np.log(sizes), np.log(t), 1)[0]
+            print(f"{w} worker(s): time ~ results^{slope:.2f}")
+    if 1 in worker_counts and 2 in worker_counts:
+        for n in sizes:
+            print(f"{n:>9,} results: 2 workers {by[(n, 1)] / by[(n, 2)]:.2f}x faster than 1")
+    big = max(sizes)
+    best = min(by[(big, w)] for w in worker_counts)
+    rss = max(r["rss_mb"] for *_, r in rows)
+    print(f"largest round {big:,} results: best {best:.1f} s (target < 30 s: "
+          f"{'PASS' if best < 30 else 'FAIL'}); worker peak RSS max {rss:.0f} MiB "
+          f"(target < 1024: {'PASS' if rss < 1024 else 'FAIL'})")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -1,0 +1,133 @@
+"""Bulk I/O of the analysis hot path: columns of numbers in and out, no model instances.
+
+On PostgreSQL both directions use binary ``COPY``: a row of fixed-width fields
+(no NULL, no text) is one record of a numpy structured dtype, so a whole query
+result is read with one ``np.frombuffer`` and a table of rows is written from
+one structured array per *row shape* (the NULL pattern and text lengths of the
+row), with no Python loop over rows.  Other databases (SQLite in development)
+read with ``values_list`` and write with ``bulk_create`` in large batches.
+
+Binary COPY format: https://www.postgresql.org/docs/current/sql-copy.html
+(§ "Binary Format": 19-byte header, per tuple an int16 field count then per
+field an int32 length, −1 for NULL, and the value in network byte order).
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from django.db import connection
+from django.db.models import QuerySet
+
+SIGNATURE = b"PGCOPY\n\xff\r\n\x00"
+HEADER = SIGNATURE + struct.pack(">ii", 0, 0)
+TRAILER = struct.pack(">h", -1)
+_NET = {"i8": ">i8", "f8": ">f8", "bool": "u1"}
+
+
+def is_postgresql() -> bool:
+    return connection.vendor == "postgresql"
+
+
+def read_columns(qs: QuerySet, kinds: Sequence[str]) -> list[np.ndarray]:
+    """The ``values_list`` columns of ``qs`` as numpy arrays (``kinds``: "i8" | "f8").
+
+    Every column must be NOT NULL.  PostgreSQL: one binary COPY of the query.
+    """
+    if not is_postgresql():
+        rows = list(qs)
+        cols = list(zip(*rows, strict=True)) if rows else [()] * len(kinds)
+        return [np.array(c, dtype=k) for c, k in zip(cols, kinds, strict=True)]
+    sql, params = qs.query.sql_with_params()
+    statement = f"COPY ({sql}) TO STDOUT (FORMAT binary)"
+    # psycopg's own cursor: Django's debug wrapper's copy() takes no parameters
+    with connection.cursor() as cur, cur.cursor.copy(statement, params) as copy:
+        data = b"".join(bytes(block) for block in copy)
+    return _parse_fixed(data, kinds)
+
+
+def _parse_fixed(data: bytes, kinds: Sequence[str]) -> list[np.ndarray]:
+    if not data.startswith(SIGNATURE):
+        raise ValueError("not a PostgreSQL binary COPY stream")
+    start = 19 + struct.unpack_from(">i", data, 15)[0]
+    fields: list[tuple[str, str]] = [("n", ">i2")]
+    for i, kind in enumerate(kinds):
+        fields += [(f"len{i}", ">i4"), (f"v{i}", _NET[kind])]
+    body = np.frombuffer(data, dtype=np.dtype(fields), offset=start,
+                         count=(len(data) - start - 2) // np.dtype(fields).itemsize)  # fmt: skip
+    wrong = [np.any(body[f"len{i}"] != np.dtype(k).itemsize) for i, k in enumerate(kinds)]
+    if np.any(body["n"] != len(kinds)) or any(wrong):
+        raise ValueError("COPY rows are not fixed-width: a NULL or an unexpected column type")
+    return [body[f"v{i}"].astype(k) for i, k in enumerate(kinds)]
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column to write: ``values`` per row; ``null`` marks NULLs; text as bytes."""
+
+    name: str
+    kind: str  # "i8" | "f8" | "bool" | "text"
+    values: np.ndarray
+    null: np.ndarray | None = None
+
+
+def copy_rows(table: str, columns: Sequence[Column]) -> int:
+    """Write the rows with one binary COPY (PostgreSQL); returns the number of rows."""
+    names = ", ".join(c.name for c in columns)
+    n = int(columns[0].values.size)
+    with connection.cursor() as cur, cur.copy(f"COPY {table} ({names}) FROM STDIN "
+                                              "(FORMAT binary)") as copy:  # fmt: skip
+        copy.write(HEADER)
+        for block in _row_blocks(columns, n):
+            copy.write(block)
+        copy.write(TRAILER)
+    return n
+
+
+def _row_blocks(columns: Sequence[Column], n: int) -> Iterator[bytes]:
+    """Rows grouped by shape (NULL pattern, text lengths): one structured array each."""
+    shape_of = np.zeros(n, dtype=np.int64)
+    for c in columns:  # mixed-radix code of each row's shape
+        part = _shape_part(c)
+        if part is not None:
+            shape_of = shape_of * (int(part.max(initial=0)) + 1) + part
+    for code in np.unique(shape_of):
+        rows = np.flatnonzero(shape_of == code)
+        yield _block(columns, rows).tobytes()
+
+
+def _shape_part(c: Column) -> np.ndarray | None:
+    if c.kind == "text":
+        lengths = np.char.str_len(c.values) if c.values.size else np.zeros(0, dtype=np.int64)
+        return lengths.astype(np.int64) + 1 if c.null is None else np.where(c.null, 0, lengths + 1)
+    return None if c.null is None else c.null.astype(np.int64)
+
+
+def _block(columns: Sequence[Column], rows: np.ndarray) -> np.ndarray:
+    first = int(rows[0])
+    fields: list[tuple[str, str]] = [("n", ">i2")]
+    for i, c in enumerate(columns):
+        fields.append((f"len{i}", ">i4"))
+        if c.null is not None and c.null[first]:
+            continue
+        if c.kind == "text":
+            width = len(c.values[first])
+            if width:
+                fields.append((f"v{i}", f"S{width}"))
+        else:
+            fields.append((f"v{i}", _NET[c.kind]))
+    out = np.empty(rows.size, dtype=np.dtype(fields))
+    out["n"] = len(columns)
+    names = {name for name, _ in fields}
+    for i, c in enumerate(columns):
+        if c.null is not None and c.null[first]:
+            out[f"len{i}"] = -1
+        elif f"v{i}" in names:
+            out[f"len{i}"] = out.dtype[f"v{i}"].itemsize
+            out[f"v{i}"] = c.values[rows]
+        else:
+            out[f"len{i}"] = 0
+    return out
