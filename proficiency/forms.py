@@ -187,3 +187,28 @@ class DecisionForm(BootstrapMixin, forms.Form):
         widget=forms.Textarea(attrs={"rows": 3}),
         help_text="Required for a rejection: the laboratory reads it.",
     )
+
+
+class ReportNotesForm(BootstrapMixin, forms.Form):
+    """The coordinator's comments and conclusions and the reports' authoriser (domain.md §9).
+    Plain text: it is escaped when printed."""
+
+    comments = forms.CharField(
+        required=False,
+        max_length=20_000,
+        strip=False,
+        widget=forms.Textarea(attrs={"rows": 6}),
+        label="Comments on performance and advice on interpretation",
+    )
+    conclusions = forms.CharField(
+        required=False, max_length=20_000, strip=False, widget=forms.Textarea(attrs={"rows": 4})
+    )
+    authorised_by_name = forms.CharField(
+        required=False, max_length=120, label="Authorised by (name)"
+    )
+    authorised_by_role = forms.CharField(
+        required=False,
+        max_length=120,
+        label="Role",
+        help_text="Final reports need both; publication is refused without them.",
+    )

@@ -97,6 +97,17 @@ class Comparison(models.Model):
     coordinators = models.ManyToManyField(
         settings.AUTH_USER_MODEL, blank=True, related_name="coordinated_comparisons"
     )
+    # Printed in the reports (domain.md §9); edited by the coordinators, audit-logged.
+    report_comments = models.TextField(
+        blank=True, help_text="Comments on performance and advice on interpretation."
+    )
+    report_conclusions = models.TextField(blank=True)
+    authorised_by_name = models.CharField(
+        max_length=120, blank=True, help_text="Person who authorises the reports."
+    )
+    authorised_by_role = models.CharField(
+        max_length=120, blank=True, help_text="e.g. Quality manager"
+    )
     created_at = models.DateTimeField(auto_now_add=True)
     updated_at = models.DateTimeField(auto_now=True)
 

@@ -8,7 +8,7 @@ from collections.abc import Iterable, Sequence
 from django.db import transaction
 
 from proficiency import protocols
-from proficiency.errors import InvalidTransition, ValidationFailed
+from proficiency.errors import InvalidTransition, StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
 
 S = ComparisonStatus
@@ -177,6 +177,12 @@ def comparison_publish(*, comparison: Comparison, user: object | None = None) ->
     from analysis.reports.services import reports_enqueue
     from labs.models import Membership
 
+    if not Comparison.objects.filter(pk=comparison.pk).exclude(authorised_by_name="").exists():
+        raise StateConflict(
+            f"{comparison.code} cannot be published: publication issues the final reports, "
+            "which need the name and role of the person authorising them. Enter them under "
+            "'Report comments and authorisation' on the comparison's page, then publish."
+        )
     published = comparison_transition(comparison=comparison, to=S.PUBLISHED)
     reports_enqueue(comparison_id=published.pk)  # issued by Celery after commit
     emails = sorted(

@@ -17,10 +17,12 @@ from rest_framework.response import Response
 from analysis.api.views import require_coordinator
 from analysis.models import Report, ReportDownload
 from analysis.reports.access import download_name, report_for_download, reports_visible
-from analysis.reports.services import report_issue
+from analysis.reports.assemble import report_status
+from analysis.reports.services import report_issue, report_notes_update
 from labs.api.permissions import caller_of
 from labs.api.views import ApiView, validated
 from proficiency.errors import NotVisible
+from proficiency.models import Comparison
 
 
 class ReportSerializer(serializers.ModelSerializer):
@@ -80,6 +82,57 @@ class ReportCollection(ApiView):
         return Response(ReportSerializer(report).data, status=status.HTTP_201_CREATED)
 
 
+class ReportNotesSerializer(serializers.Serializer):
+    comments = serializers.CharField(
+        source="report_comments",
+        required=False,
+        allow_blank=True,
+        default="",
+        trim_whitespace=False,
+        help_text="Comments on performance and advice on interpretation (plain text).",
+    )
+    conclusions = serializers.CharField(
+        source="report_conclusions",
+        required=False,
+        allow_blank=True,
+        default="",
+        trim_whitespace=False,
+    )
+    authorised_by_name = serializers.CharField(required=False, allow_blank=True, default="")
+    authorised_by_role = serializers.CharField(required=False, allow_blank=True, default="")
+    status = serializers.SerializerMethodField(help_text="Status the next reports will carry.")
+
+    def get_status(self, comparison: Comparison) -> str:
+        return report_status(comparison)
+
+
+class ReportNotes(ApiView):
+    """The coordinator's comments, conclusions and the reports' authoriser (coordinators).
+
+    PUT replaces all four; the next issued reports print them. Audit-logged."""
+
+    @extend_schema(responses=ReportNotesSerializer)
+    def get(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        return Response(ReportNotesSerializer(access.comparison).data)
+
+    @extend_schema(request=ReportNotesSerializer, responses=ReportNotesSerializer)
+    def put(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        data = validated(ReportNotesSerializer, request.data)
+        comparison = report_notes_update(
+            comparison=access.comparison,
+            comments=data["report_comments"],
+            conclusions=data["report_conclusions"],
+            authorised_by_name=data["authorised_by_name"],
+            authorised_by_role=data["authorised_by_role"],
+            user=request.user,
+        )
+        return Response(ReportNotesSerializer(comparison).data)
+
+
 class ReportPdf(ApiView):
     """The PDF of one report, by its download token; every download is logged."""
 
@@ -103,4 +156,5 @@ class ReportPdf(ApiView):
 urlpatterns = [
     path("comparisons/<slug:code>/reports/", ReportCollection.as_view(), name="report-list"),
     path("reports/<str:token>/pdf", ReportPdf.as_view(), name="report-pdf"),
+    path("comparisons/<slug:code>/report-notes/", ReportNotes.as_view(), name="report-notes"),
 ]

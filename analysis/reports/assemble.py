@@ -19,14 +19,15 @@ from analysis.reports.data import (
     ReportData,
     ResultRow,
     ScoreRow,
+    StabilityRow,
 )
+from analysis.reports.stability import stability_rows
 from labs.models import Participant
 from proficiency import protocols
 from proficiency.models import (
     AssignedValueMethod,
     Comparison,
     ComparisonStatus,
-    ReferenceValue,
     SigmaPtMode,
 )
 
@@ -53,6 +54,19 @@ def person(user: AbstractBaseUser) -> str:
     return user.get_full_name() or user.get_username()  # type: ignore[attr-defined]
 
 
+def authoriser(comparison: Comparison) -> str:
+    """ "Name, role" of the person authorising the reports; empty when none is entered."""
+    name, role = comparison.authorised_by_name.strip(), comparison.authorised_by_role.strip()
+    return f"{name}, {role}" if name and role else name
+
+
+def report_status(comparison: Comparison, authorised_by: str = "") -> str:
+    """Final only once published *and* authorised (ISO/IEC 17043 reports are authorised);
+    everything else, e.g. a report issued for review before publication, is preliminary."""
+    published = comparison.status == ComparisonStatus.PUBLISHED
+    return "final" if published and (authorised_by or authoriser(comparison)) else "preliminary"
+
+
 def report_number(comparison: Comparison, participant: Participant | None, edition: int) -> str:
     """``<code>-S-v<n>`` for the summary, ``<code>-<participant code>-v<n>`` otherwise."""
     return f"{comparison.code}-{participant.code if participant else 'S'}-v{edition}"
@@ -66,7 +80,10 @@ def report_data(
     authorised_by: str = "",
     comments: str = "",
 ) -> ReportData:
-    """The data of the summary report (``participant`` None) or of one participant's."""
+    """The data of the summary report (``participant`` None) or of one participant's.
+
+    Comments, conclusions and the authoriser come from the comparison (entered by the
+    coordinator); ``authorised_by`` and ``comments`` override them when given."""
     comparison = run.comparison
     points, index = _points(comparison)
     coordinators = tuple(person(u) for u in comparison.coordinators.order_by("username"))
@@ -74,6 +91,7 @@ def report_data(
     results, scores = _results_and_scores(run, index)
     assigned = _assigned(run, index)
     template = protocols.TEMPLATES.get(comparison.protocol)
+    stable = stability_rows(comparison, index, assigned)
     assert run.finished_at is not None, "only a finished run is reported"
     return ReportData(
         kind=PARTICIPANT if participant else "summary",
@@ -82,8 +100,8 @@ def report_data(
         comparison_title=comparison.title,
         report_number=report_number(comparison, participant, edition),
         issue_date=run.finished_at,
-        status="final" if comparison.status == ComparisonStatus.PUBLISHED else "preliminary",
-        authorised_by=authorised_by or (coordinators[0] if coordinators else "the coordinator"),
+        status=report_status(comparison, authorised_by),
+        authorised_by=authorised_by or authoriser(comparison),
         coordinators=coordinators,
         software_version=proficiency.__version__,
         protocol_title=template.title if template else "Custom protocol",
@@ -102,8 +120,10 @@ def report_data(
         en_limit=comparison.en_limit,
         sigma_pt_description=_sigma_pt(comparison),
         traceability=_traceability(comparison),
-        stability=_stability(comparison),
-        comments=comments,
+        stability=_stability(stable),
+        stability_rows=stable,
+        comments=comments or comparison.report_comments,
+        conclusions=comparison.report_conclusions,
         own_code=participant.code if participant else None,
         chart_points=_chart_points(scores, participant.code if participant else None),
     )
@@ -250,21 +270,22 @@ def _traceability(comparison: Comparison) -> str:
     )
 
 
-def _stability(comparison: Comparison) -> str:
-    sources = set(
-        ReferenceValue.objects.filter(measurement_point__comparison=comparison).values_list(
-            "source", flat=True
-        )
+def _stability(rows: tuple[StabilityRow, ...]) -> str:
+    homogeneity = (
+        "Homogeneity: each artefact is one item circulated to every participant, so there is "
+        "no between-item inhomogeneity (u_hom = 0). "
     )
-    if {ReferenceValue.Source.STABILITY_BEFORE, ReferenceValue.Source.STABILITY_AFTER} <= sources:
-        return (
-            "the pilot measured the artefacts before and after circulation; where the drift "
-            "Δ exceeded 0.3·σ_pt or the two were not compatible, u_stab = |Δ|/√3 was added "
-            "to u(x_pt) (domain.md §7)."
+    if not rows:
+        return homogeneity + (
+            "Stability: no measurements of the pilot before and after circulation were "
+            "recorded for this round; u_stab is taken as zero."
         )
-    return (
-        "no homogeneity or stability measurements were recorded for this round; "
-        "u_hom and u_stab are taken as zero."
+    bad = sum(not r.stable for r in rows)
+    return homogeneity + (
+        f"Stability: the pilot measured the artefacts before and after circulation at "
+        f"{len(rows)} measurement point(s); {len(rows) - bad} are stable (|Δ| ≤ 0.3·σ_pt or "
+        f"En ≤ 1, domain.md §7) and {bad} are not. At an unstable point the drift adds "
+        "u_stab = |Δ|/√3, listed below, to u(x_pt) = √(u_char² + u_hom² + u_stab²)."
     )
 
 

@@ -84,6 +84,22 @@ class ScoreRow:
 
 
 @dataclass(frozen=True)
+class StabilityRow:
+    """The pilot's mean before and after circulation at one point (domain.md §7):
+    Δ = after − before, En of the two, the 0.3·σ_pt limit (None without σ_pt), the verdict
+    and u_stab = |Δ|/√3 when unstable (else 0)."""
+
+    point: int
+    before: float
+    after: float
+    delta: float
+    en: float
+    limit: float | None
+    stable: bool
+    u_stab: float
+
+
+@dataclass(frozen=True)
 class MatrixData:
     """Pairwise En between the levels of one factor within one group (domain.md §6)."""
 
@@ -107,7 +123,7 @@ class ReportData:
     report_number: str
     issue_date: datetime  # the run's finish time: fixed by the run, not by the clock
     status: str  # "final" | "preliminary"
-    authorised_by: str
+    authorised_by: str  # "name, role"; empty when nobody has authorised the report yet
     coordinators: tuple[str, ...]
     software_version: str
     protocol_title: str
@@ -127,7 +143,9 @@ class ReportData:
     sigma_pt_description: str = "not used (En and ζ only)"
     traceability: str = ""
     stability: str = ""
+    stability_rows: tuple[StabilityRow, ...] = ()
     comments: str = ""
+    conclusions: str = ""
     own_code: str | None = None
     chart_points: tuple[int, ...] = field(default=())
 

@@ -1,50 +1,128 @@
-"""The report's graphs as platypus images: data → PNG (``charts``) → ``Image``."""
+"""The report's graphs as platypus flowables: data → :mod:`charts` raster → PDF image.
+
+:class:`RasterImage` writes the chart's pre-compressed pixels as an image XObject, so a
+chart shared by many reports is compressed once per process, not once per report.
+"""
 
 from __future__ import annotations
 
-import io
+import copy
+import functools
 from collections import defaultdict
 from statistics import median
 
+from reportlab import rl_config
+from reportlab.lib.colors import HexColor
+from reportlab.lib.rl_accel import asciiBase85Encode
 from reportlab.lib.units import mm
-from reportlab.platypus import Flowable, Image, Paragraph
+from reportlab.pdfbase.pdfdoc import PDFImageXObject
+from reportlab.platypus import Flowable, Paragraph
 
 from analysis.reports import charts
+from analysis.reports.charts import Overlay, Raster
 from analysis.reports.data import ReportData
 from analysis.reports.styles import STYLES
 
 WIDTH = 170 * mm
 
 
-def _image(png: bytes, width_in: float, height_in: float) -> Image:
-    height = WIDTH * height_in / width_in
-    return Image(io.BytesIO(png), width=WIDTH, height=height)
+@functools.lru_cache(maxsize=256)
+def _xobject(raster: Raster) -> PDFImageXObject:
+    """The XObject reportlab's ``drawImage`` would build from these pixels (same filters)."""
+    obj = PDFImageXObject(raster.name)
+    obj.width, obj.height = raster.width, raster.height
+    obj.bitsPerComponent, obj.colorSpace, obj.mask = 8, "DeviceRGB", None
+    if rl_config.useA85:
+        obj.streamContent = asciiBase85Encode(raster.stream)
+        obj._filters = ("ASCII85Decode", "FlateDecode")
+    else:
+        obj.streamContent = raster.stream
+        obj._filters = ("FlateDecode",)
+    return obj
+
+
+class RasterImage(Flowable):
+    """A chart at full text width, with the reader's own result drawn over it as vector
+    marks; the image is what ``Canvas.drawImage`` writes, minus re-encoding."""
+
+    def __init__(self, raster: Raster, overlay: Overlay | None = None) -> None:
+        super().__init__()
+        self.raster, self.overlay = raster, overlay
+        self.width, self.height = WIDTH, WIDTH * raster.height / raster.width
+
+    def wrap(self, available_width: float, available_height: float) -> tuple[float, float]:
+        return self.width, self.height
+
+    def draw(self) -> None:
+        canvas, name = self.canv, self.raster.name
+        canvas._currentPageHasImages = 1
+        registered = canvas._doc.getXObjectName(name)
+        if not canvas._doc.idToObject.get(registered):
+            obj = copy.copy(_xobject(self.raster))  # per document: reportlab sets attributes
+            canvas._setXObjects(obj)
+            canvas._doc.Reference(obj, registered)
+            canvas._doc.addForm(name, obj)
+        canvas.saveState()
+        canvas.scale(self.width, self.height)
+        canvas._code.append(f"/{registered} Do")
+        canvas.restoreState()
+        canvas._formsinuse.append(name)
+        if self.overlay:
+            self._draw_overlay(self.overlay)
+
+    def _draw_overlay(self, mark: Overlay) -> None:
+        canvas = self.canv
+        canvas.saveState()
+        canvas.scale(self.width / self.raster.width, self.height / self.raster.height)
+        colour = HexColor(mark.colour)
+        canvas.setStrokeColor(colour)
+        canvas.setFillColor(colour)
+        canvas.setLineWidth(mark.line_width)
+        if mark.lines:
+            canvas.lines(mark.lines)
+        for x, y in mark.dots:
+            canvas.circle(x, y, mark.dot_radius, stroke=0, fill=1)
+        for x0, y0, x1, y1 in mark.rects:
+            canvas.rect(x0, y0, x1 - x0, y1 - y0, stroke=0, fill=1)
+        canvas.restoreState()
 
 
 def figures(data: ReportData) -> list[Flowable]:
     """Values vs x_pt for the chosen points, largest |En| per lab, x_pt vs frequency."""
     out: list[Flowable] = []
-    assigned = {a.point: a for a in data.assigned}
-    for index in data.chart_points:
-        p, a = data.points[index], assigned.get(index)
-        rows = [r for r in data.results if r.point == index]
-        if a is None or not rows:
-            continue
-        png = charts.point_png(
-            [r.lab for r in rows],
-            [r.value for r in rows],
-            [r.expanded_uncertainty for r in rows],
-            x_pt=a.value,
-            u_x_pt_expanded=2 * a.standard_uncertainty,
-            title=p.full_label,
-            unit=p.unit,
-            highlight=data.own_code,
-        )
-        out.append(_image(png, 6.4, 2.6))
+    if data.own_code:
+        note = f"Your result ({data.own_code}) is drawn in pink; the others in blue."
+        out.append(Paragraph(note, STYLES["small"]))
+    out += _point_charts(data)
     out += _en_chart(data)
     out += _frequency_charts(data)
     if not out:
         out.append(Paragraph("No graphs: the run has no results.", STYLES["body"]))
+    return out
+
+
+def _point_charts(data: ReportData) -> list[Flowable]:
+    assigned = {a.point: a for a in data.assigned}
+    by_point: dict[int, list[int]] = defaultdict(list)
+    wanted = set(data.chart_points)
+    for i, r in enumerate(data.results):
+        if r.point in wanted:
+            by_point[r.point].append(i)
+    out: list[Flowable] = []
+    for index in data.chart_points:
+        p, a, rows = data.points[index], assigned.get(index), by_point.get(index)
+        if a is None or not rows:
+            continue
+        chart = charts.point_chart(
+            tuple(data.results[i].lab for i in rows),
+            tuple(data.results[i].value for i in rows),
+            tuple(data.results[i].expanded_uncertainty for i in rows),
+            x_pt=a.value,
+            u_x_pt_expanded=2 * a.standard_uncertainty,
+            title=p.full_label,
+            unit=p.unit,
+        )
+        out.append(RasterImage(chart.raster, chart.overlay(data.own_code)))
     return out
 
 
@@ -54,16 +132,14 @@ def _en_chart(data: ReportData) -> list[Flowable]:
         largest[s.lab] = max(largest.get(s.lab, 0.0), abs(s.en))
     if not largest:
         return []
-    labs = sorted(largest)
-    png = charts.en_png(
-        labs, [largest[c] for c in labs], limit=data.en_limit, highlight=data.own_code
-    )
-    return [_image(png, 6.4, 2.4)]
+    labs = tuple(sorted(largest))
+    chart = charts.en_chart(labs, tuple(largest[c] for c in labs), limit=data.en_limit)
+    return [RasterImage(chart.raster, chart.overlay(data.own_code))]
 
 
 def _frequency_charts(data: ReportData) -> list[Flowable]:
     """Median of the participants' results against frequency, one line per bench,
-    direction and axis (the same in every report of a run, so the PNG is cached)."""
+    direction and axis (the same in every report of a run, so the raster is cached)."""
     values: dict[str, dict[str, dict[float, list[float]]]] = defaultdict(dict)
     for r in data.results:
         p = data.points[r.point]
@@ -77,5 +153,5 @@ def _frequency_charts(data: ReportData) -> list[Flowable]:
         )
         unit = next(p.unit for p in data.points if p.device == device)
         title = f"{device}: median sensitivity against frequency"
-        out.append(_image(charts.frequency_png(series, title=title, unit=unit), 6.4, 2.8))
+        out.append(RasterImage(charts.frequency_chart(series, title=title, unit=unit)))
     return out

@@ -13,6 +13,7 @@ from analysis.reports import figures
 from analysis.reports.data import ReportData, ResultRow, ScoreRow
 from analysis.reports.styles import BAD_TEXT, BOLD, FONT, GRID, HEAD_BACKGROUND, OWN_BACKGROUND
 from analysis.reports.styles import STYLES as S
+from analysis.reports.tables import FastTable
 
 CONFIDENTIALITY = (
     "This report is confidential. Participants are identified by a code known only to "
@@ -26,6 +27,13 @@ INTERPRETATION = (
     "(or z′) are judged satisfactory at |score| ≤ 2, questionable for 2 < |score| < 3 and "
     "unsatisfactory at |score| ≥ 3 (ISO 13528:2022 §9). D = x − x_pt."
 )
+
+
+ROW_HEIGHT = 7.5 * 1.2 + 3.0  # leading of the 7.5 pt cell font + top and bottom padding
+STATUS_TEXT = {
+    "final": "Final",
+    "preliminary": "Preliminary (not the final report; results may still change)",
+}
 
 
 def num(value: float | None, spec: str) -> str:
@@ -42,8 +50,11 @@ def table(
     own_rows: Sequence[int] = (),
     bad_cells: Sequence[tuple[int, int]] = (),
 ) -> Table:
-    """A grid with a repeated dark header; the reader's own rows bold on a pink background."""
-    t = Table(rows, colWidths=list(widths), repeatRows=1)
+    """A grid with a repeated dark header; the reader's own rows bold on a pink background.
+
+    Cells are single-line strings, so every row has the same height; giving it saves
+    reportlab from measuring every remaining row again at each page break."""
+    t = FastTable(rows, colWidths=list(widths), rowHeights=[ROW_HEIGHT] * len(rows), repeatRows=1)
     style: list[tuple[object, ...]] = [
         ("FONT", (0, 0), (-1, -1), FONT, 7.5),
         ("FONT", (0, 0), (-1, 0), BOLD, 7.5),
@@ -72,9 +83,9 @@ def title_page(data: ReportData) -> list[Flowable]:
         ["Comparison", f"{data.comparison_code} — {data.comparison_title}"],
         ["Report number", data.report_number],
         ["Issue date", data.issue_date.strftime("%Y-%m-%d")],
-        ["Status", data.status.capitalize()],
+        ["Status", STATUS_TEXT.get(data.status, data.status)],
         ["Coordinators", ", ".join(data.coordinators) or "–"],
-        ["Authorised by", data.authorised_by],
+        ["Authorised by", data.authorised_by or "not yet authorised"],
         ["Software", f"proficiency {data.software_version}"],
     ]
     t = Table([[para(escape(a)), para(escape(b))] for a, b in rows], colWidths=[55 * mm, 119 * mm])
@@ -87,8 +98,20 @@ def title_page(data: ReportData) -> list[Flowable]:
         Spacer(1, 10 * mm),
         t,
         Spacer(1, 20 * mm),
-        para(f"Authorised by: {escape(data.authorised_by)}, on behalf of {escape(data.provider)}"),
+        para(_authorisation(data)),
     ]
+
+
+def _authorisation(data: ReportData) -> str:
+    if not data.authorised_by:
+        return (
+            "<b>Preliminary report, not yet authorised for issue.</b> The results and "
+            "scores may still change before the final report."
+        )
+    return (
+        f"Authorised for issue by {escape(data.authorised_by)}, "
+        f"on behalf of {escape(data.provider)}."
+    )
 
 
 def confidentiality(data: ReportData) -> list[Flowable]:
@@ -157,7 +180,35 @@ def artefacts(data: ReportData) -> list[Flowable]:
         table(rows, [18 * mm, 22 * mm, 34 * mm, 34 * mm, 34 * mm, 32 * mm]),
         Spacer(1, 3 * mm),
         para(f"<b>Homogeneity and stability:</b> {escape(data.stability)}"),
+        *_stability_table(data),
     ]
+
+
+def _stability_table(data: ReportData) -> list[Flowable]:
+    """The pilot's before/after means per point, Δ, En, 0.3·σ_pt and the verdict (§7)."""
+    if not data.stability_rows:
+        return []
+    rows = [["Device", "Point", "before", "after", "Δ", "En", "0.3·σ_pt", "Stable", "u_stab"]]
+    bad = []
+    for n, r in enumerate(data.stability_rows, start=1):
+        p = data.points[r.point]
+        rows.append(
+            [
+                p.device,
+                p.label,
+                f"{r.before:.6g}",
+                f"{r.after:.6g}",
+                f"{r.delta:+.3g}",
+                f"{r.en:.2f}",
+                num(r.limit, ".3g"),
+                "yes" if r.stable else "no",
+                f"{r.u_stab:.3g}",
+            ]
+        )
+        if not r.stable:
+            bad.append((n, 7))
+    widths = [16 * mm, 44 * mm, 17 * mm, 17 * mm, 16 * mm, 11 * mm, 17 * mm, 13 * mm, 15 * mm]
+    return [Spacer(1, 2 * mm), table(rows, widths, (), bad)]
 
 
 def participants(data: ReportData) -> list[Flowable]:
@@ -203,11 +254,46 @@ def results_and_scores(data: ReportData) -> list[Flowable]:
         para("6 Results and scores", "h1"),
         para(INTERPRETATION.format(limit=data.en_limit)),
     ]
-    devices = sorted({p.device for p in data.points})
-    for device in devices:
-        rows = [r for r in data.results if data.points[r.point].device == device]
-        flow += [para(escape(device), "h2"), _result_table(data, rows, scores)]
+    shown = data.results
+    if data.is_participant and len(data.results) > FULL_TABLE_ROWS:
+        shown = tuple(r for r in data.results if r.lab == data.own_code)
+        flow += [para(_LARGE_ROUND.format(n=len(data.results), own=data.own_code))]
+        flow += _spread_table(data)
+    by_device: dict[str, list[ResultRow]] = {}
+    for r in shown:
+        by_device.setdefault(data.points[r.point].device, []).append(r)
+    for device in sorted(by_device):
+        flow += [para(escape(device), "h2"), _result_table(data, by_device[device], scores)]
     return flow
+
+
+FULL_TABLE_ROWS = 2000  # above this, a participant report lists its own rows only
+_LARGE_ROUND = (
+    "This round has {n:,} results: this report lists yours ({own}) with the spread of all "
+    "participants' results at each point; the summary report lists every result by code."
+)
+
+
+def _spread_table(data: ReportData) -> list[Flowable]:
+    """Per point: number of results, min / median / max, x_pt and the incompatible count."""
+    values: dict[int, list[float]] = {}
+    for r in data.results:
+        values.setdefault(r.point, []).append(r.value)
+    bad: dict[int, int] = {}
+    for sc in data.scores:
+        bad[sc.point] = bad.get(sc.point, 0) + (abs(sc.en) > data.en_limit)
+    x_pt = {a.point: a.value for a in data.assigned}
+    rows = [["Device", "Point", "n", "min", "median", "max", "x_pt", "|En| > limit"]]
+    for point in sorted(values):
+        v, p = sorted(values[point]), data.points[point]
+        mid = len(v) // 2
+        med = v[mid] if len(v) % 2 else (v[mid - 1] + v[mid]) / 2
+        rows.append(
+            [p.device, p.label, str(len(v)), f"{v[0]:.6g}", f"{med:.6g}", f"{v[-1]:.6g}",
+             num(x_pt.get(point), ".6g"), str(bad.get(point, 0))]
+        )  # fmt: skip
+    widths = [16 * mm, 46 * mm, 12 * mm, 20 * mm, 20 * mm, 20 * mm, 20 * mm, 20 * mm]
+    return [table(rows, widths), Spacer(1, 2 * mm)]
 
 
 def _result_table(
@@ -240,7 +326,7 @@ def _result_table(
         if s and abs(s.en) > data.en_limit:
             bad.append((len(out) - 1, 6))
     widths = [
-        44 * mm,
+        42 * mm,
         14 * mm,
         19 * mm,
         14 * mm,
@@ -249,7 +335,7 @@ def _result_table(
         13 * mm,
         13 * mm,
         14 * mm,
-        18 * mm,
+        20 * mm,
     ]
     return table(out, widths, own, bad)
 
@@ -283,13 +369,23 @@ def charts(data: ReportData) -> list[Flowable]:
     return [para("8 Graphs", "h1"), *figures.figures(data)]
 
 
+def plain(text: str) -> str:
+    """Coordinator text as paragraph markup: <, > and & escaped (reportlab's Paragraph
+    reads markup), line breaks kept."""
+    return escape(text.strip(), quote=False).replace("\r\n", "\n").replace("\n", "<br/>")
+
+
 def comments(data: ReportData) -> list[Flowable]:
+    """The coordinator's comments and conclusions, then the count of compatible results."""
     n = len(data.scores)
     bad = sum(abs(s.en) > data.en_limit for s in data.scores)
-    text = escape(data.comments).replace("\n", "<br/>") if data.comments.strip() else "No comments."
+    conclusions = plain(data.conclusions) or "No conclusions were entered."
     return [
         para("9 Comments and conclusions", "h1"),
-        para(text),
+        para("Comments on performance", "h2"),
+        para(plain(data.comments) or "No comments."),
+        para("Conclusions", "h2"),
+        para(conclusions),
         para(
             f"<b>Conclusion:</b> {n - bad} of {n} results are compatible with their assigned "
             f"values (|En| ≤ {data.en_limit:g}); {bad} are not."

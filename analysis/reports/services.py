@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Sequence
 
+from auditlog.context import set_actor
 from django.core.files.base import ContentFile
 from django.db import transaction
 from django.db.models import Max
@@ -23,6 +24,66 @@ from proficiency.errors import StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus
 
 REPORTABLE = (ComparisonStatus.ANALYSED, ComparisonStatus.PUBLISHED)
+MAX_TEXT = 20_000
+MAX_NAME = 120
+
+
+def _check_notes(
+    comparison: Comparison, comments: str, conclusions: str, name: str, role: str
+) -> None:
+    errors = [
+        {"field": field, "message": f"At most {limit:,} characters ({len(value):,} given)."}
+        for field, value, limit in (
+            ("comments", comments, MAX_TEXT),
+            ("conclusions", conclusions, MAX_TEXT),
+            ("authorised_by_name", name, MAX_NAME),
+            ("authorised_by_role", role, MAX_NAME),
+        )
+        if len(value) > limit
+    ]
+    if bool(name) != bool(role):
+        missing = "authorised_by_role" if name else "authorised_by_name"
+        message = "Give both the name and the role of the person authorising the reports."
+        errors.append({"field": missing, "message": message})
+    if errors:
+        raise ValidationFailed("The report comments or authorisation are not valid.", errors=errors)
+    if comparison.status == ComparisonStatus.PUBLISHED and not name:
+        raise StateConflict(
+            f"{comparison.code} is published: its final reports need an authoriser, which "
+            "can be changed but not removed."
+        )
+
+
+@transaction.atomic
+def report_notes_update(
+    *,
+    comparison: Comparison,
+    comments: str,
+    conclusions: str,
+    authorised_by_name: str,
+    authorised_by_role: str,
+    user: object | None = None,
+) -> Comparison:
+    """Store the coordinator's comments, conclusions and the report's authoriser
+    (domain.md §9), audit-logged with ``user`` as actor. Reports already issued keep
+    their text; a reissue prints the new one."""
+    locked = Comparison.objects.select_for_update().get(pk=comparison.pk)
+    name, role = authorised_by_name.strip(), authorised_by_role.strip()
+    _check_notes(locked, comments, conclusions, name, role)
+    locked.report_comments = comments.strip()
+    locked.report_conclusions = conclusions.strip()
+    locked.authorised_by_name, locked.authorised_by_role = name, role
+    with set_actor(user if getattr(user, "pk", None) else None):
+        locked.save(
+            update_fields=[
+                "report_comments",
+                "report_conclusions",
+                "authorised_by_name",
+                "authorised_by_role",
+                "updated_at",
+            ]
+        )
+    return locked
 
 
 def _reportable_run(comparison: Comparison) -> AnalysisRun:
@@ -62,8 +123,12 @@ def report_issue(
     authorised_by: str = "",
     comments: str = "",
 ) -> Report:
-    """Render and store a new version of a report from the current run; supersede the older."""
-    locked = Comparison.objects.select_for_update().get(pk=comparison.pk)
+    """Render and store a new version of a report from the current run; supersede the older.
+
+    The row lock that serialises the versions of one report is the participant's for a
+    participant report and the comparison's for the summary, so that workers render the
+    reports of different participants in parallel."""
+    locked = _lock(comparison, participant)
     _check_kind(locked, kind, participant)
     run = _reportable_run(locked)
     previous = Report.objects.filter(comparison=locked, kind=kind, participant=participant)
@@ -92,6 +157,13 @@ def report_issue(
     report.save()
     previous.exclude(pk=report.pk).filter(superseded=False).update(superseded=True)
     return report
+
+
+def _lock(comparison: Comparison, participant: Participant | None) -> Comparison:
+    if participant is None:
+        return Comparison.objects.select_for_update().get(pk=comparison.pk)
+    list(Participant.objects.select_for_update().filter(pk=participant.pk).values_list("pk"))
+    return Comparison.objects.get(pk=comparison.pk)
 
 
 def report_issue_once(*, run_id: int, kind: str, participant_id: int | None) -> Report | None:

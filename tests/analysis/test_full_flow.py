@@ -89,6 +89,9 @@ def test_round_end_to_end(coordinator):
     assert by_lab[codes["Lab Alpha"]]["correlation_applied"] is True
 
     assert client(key=key_a).get(base + "scores/").status_code == 409
+    assert coord.post(base + "publish/").status_code == 409  # final reports need an authoriser
+    signed = {"authorised_by_name": "Carla C.", "authorised_by_role": "PT coordinator"}
+    assert coord.put(base + "report-notes/", signed, format="json").status_code == 200
     assert coord.post(base + "publish/").json()["status"] == "published"
     own = client(key=key_a).get(base + "scores/").json()
     assert own["count"] == 9 and {s["lab"] for s in own["results"]} == {codes["Lab Alpha"]}

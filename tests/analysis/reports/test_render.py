@@ -25,13 +25,14 @@ FLAGS = {"satisfactory", "questionable", "unsatisfactory", "action", "warning"}
 
 
 def table_rows(text: str, codes: set[str]) -> list[list[str]]:
-    """Rows of the results-and-scores tables: lab, value, U, k, D, En, ζ, z, flag."""
+    """Rows of the results-and-scores tables: lab, value, U, k, D, En, ζ, z, flag (one
+    extracted line per table row, the point label first where a point starts)."""
     body = text.split("6 Results and scores", 1)[1].split("7 Compatibility matrices", 1)[0]
-    lines = [line.strip() for line in body.splitlines()]
     rows = []
-    for i, line in enumerate(lines):
-        if line in codes and i + 9 <= len(lines) and lines[i + 8] in FLAGS | {"–"}:
-            rows.append(lines[i : i + 9])
+    for line in body.splitlines():
+        cells = line.split()[-9:]
+        if len(cells) == 9 and cells[0] in codes and cells[8] in FLAGS | {"–"}:
+            rows.append(cells)
     return rows
 
 
@@ -101,12 +102,8 @@ def test_summary_has_every_item_and_the_run_numbers(analysed, settings):
 def test_assigned_values_printed(analysed):
     text = "\n".join(pdf_text(render_report(report_data(run=analysed))))
     body = text.split("5 Assigned values", 1)[1].split("6 Results and scores", 1)[0]
-    lines = [line.strip() for line in body.splitlines()]
-    printed = [
-        (lines[i + 2], lines[i + 3])
-        for i, line in enumerate(lines)
-        if line.startswith("MEMS ") and "Hz" in lines[i + 1]
-    ]
+    row = re.compile(r"^MEMS \d+ [XYZ], [\d.]+ Hz, \w+ \w+ (\S+) (\S+) ")
+    printed = [m.groups() for line in body.splitlines() if (m := row.match(line.strip()))]
     found = AssignedValue.objects.filter(run=analysed).order_by(*ORDER)
     stored = list(found.values_list("value", "standard_uncertainty"))
     assert len(printed) == len(stored) == 81
