@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import secrets
+from collections.abc import Sequence
 
 from django.contrib.auth.models import AbstractBaseUser
 from django.db import IntegrityError, connections, router, transaction
+from django.db.backends.base.base import BaseDatabaseWrapper
 from django.utils import timezone
 
 from labs.importers import (
@@ -210,20 +212,38 @@ def _results(
         values.append(
             (submission.pk, point_id, row.sensitivity, row.unit, big_u, k, row.dof, row.note)
         )
-    names = ("submission", "measurement_point", "value", "unit", "expanded_uncertainty",
-             "coverage_factor", "dof", "note")  # fmt: skip
+    return results_insert(values)
+
+
+RESULT_COLUMNS = ("submission", "measurement_point", "value", "unit", "expanded_uncertainty",
+                  "coverage_factor", "dof", "note")  # fmt: skip
+
+
+def results_insert(values: Sequence[tuple[object, ...]]) -> int:
+    """Insert raw :class:`Result` rows (tuples in :data:`RESULT_COLUMNS` order); the count.
+
+    One ``COPY`` on PostgreSQL, one ``executemany`` elsewhere, inside the caller's
+    transaction; the database enforces every constraint of ``Result``.
+    """
     connection = connections[router.db_for_write(Result)]
-    table = connection.ops.quote_name(Result._meta.db_table)
-    columns = ", ".join(connection.ops.quote_name(Result._meta.get_field(n).column) for n in names)
     with connection.cursor() as cursor:
         if connection.vendor == "postgresql":
-            with cursor.cursor.copy(f"COPY {table} ({columns}) FROM STDIN") as copy:
+            with cursor.cursor.copy(results_sql(connection, copy=True)) as copy:
                 for value in values:
                     copy.write_row(value)
         else:
-            marks = ", ".join(["%s"] * len(names))
-            cursor.executemany(f"INSERT INTO {table} ({columns}) VALUES ({marks})", values)
+            cursor.executemany(results_sql(connection, copy=False), values)
     return len(values)
+
+
+def results_sql(connection: BaseDatabaseWrapper, *, copy: bool) -> str:
+    """``COPY result (...) FROM STDIN`` or ``INSERT INTO result (...) VALUES (%s, ...)``."""
+    table = connection.ops.quote_name(Result._meta.db_table)
+    names = [connection.ops.quote_name(Result._meta.get_field(n).column) for n in RESULT_COLUMNS]
+    if copy:
+        return f"COPY {table} ({', '.join(names)}) FROM STDIN"
+    marks = ", ".join(["%s"] * len(names))
+    return f"INSERT INTO {table} ({', '.join(names)}) VALUES ({marks})"
 
 
 def _import_failed(exc: ImportErrors) -> ValidationFailed:

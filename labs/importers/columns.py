@@ -216,16 +216,35 @@ def validate_columns(
     Same contract as :func:`labs.importers.validate.validate_records`.
     """
     found = list(errors)
-    v = _Validator(columns, numbers, decimal_comma)
-    values = _field_values(v, context, lab_column)
-    rows = _assemble(v, values, context)
-    found.extend(v.errors)
+    rows, problems = check_columns(
+        columns, numbers, decimal_comma=decimal_comma, lab_column=lab_column, context=context
+    )
+    found.extend(problems)
     found.extend(find_duplicates(rows))
     if not rows and not found:
         found.append(RowError(None, None, "the table has no data rows"))
     if found:
         raise ImportErrors(sorted(found, key=_error_order))
     return rows
+
+
+def check_columns(
+    columns: Mapping[str, Sequence[object]],
+    numbers: Sequence[int],
+    *,
+    decimal_comma: bool = False,
+    lab_column: LabColumn = "optional",
+    context: TableContext | None = None,
+) -> tuple[list[ResultRow], list[RowError]]:
+    """The good rows and the problems of the others, unsorted, without raising.
+
+    :func:`validate_columns` without its whole-table steps (the duplicate check, the
+    empty-table error): a streamed import checks a chunk at a time with it.
+    """
+    v = _Validator(columns, numbers, decimal_comma)
+    values = _field_values(v, context, lab_column)
+    rows = _assemble(v, values, context)
+    return rows, v.errors
 
 
 def _assemble(
