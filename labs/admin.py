@@ -1,7 +1,17 @@
 from django.contrib import admin
 from rest_framework_api_key.admin import APIKeyModelAdmin
 
-from labs.models import LabAPIKey, Laboratory, Membership, Participant, Result, Submission
+from labs.models import (
+    LabAPIKey,
+    Laboratory,
+    Membership,
+    Participant,
+    RawFile,
+    RawRecomputation,
+    RawRecord,
+    Result,
+    Submission,
+)
 
 
 @admin.register(Laboratory)
@@ -71,3 +81,53 @@ class LabAPIKeyAdmin(APIKeyModelAdmin):
     list_display = [*APIKeyModelAdmin.list_display, "laboratory"]
     list_filter = [*APIKeyModelAdmin.list_filter, "laboratory"]
     search_fields = [*APIKeyModelAdmin.search_fields, "laboratory__name"]
+
+
+class CreatedByUploadOnly(admin.ModelAdmin):
+    """Raw data is created by the upload service only (it validates and hashes the
+    files) and never modified: the admin views and deletes."""
+
+    def has_add_permission(self, request, obj=None) -> bool:  # type: ignore[no-untyped-def]
+        return False
+
+    def has_change_permission(self, request, obj=None) -> bool:  # type: ignore[no-untyped-def]
+        return False
+
+
+@admin.register(RawFile)
+class RawFileAdmin(CreatedByUploadOnly):
+    list_display = ["sha256", "size", "created_at"]
+    list_filter = ["created_at"]
+    search_fields = ["sha256"]
+
+
+class RawRecomputationInline(admin.StackedInline):
+    model = RawRecomputation
+    extra = 0
+    can_delete = False
+    readonly_fields = ["status", "error", "sensitivity", "expanded_uncertainty", "en", "fs_hz"]
+    fields = readonly_fields
+
+
+@admin.register(RawRecord)
+class RawRecordAdmin(CreatedByUploadOnly):
+    list_display = ["data_name", "participant", "measurement_point", "created_at"]
+    list_filter = [
+        "participant__comparison",
+        "measurement_point__bench",
+        "recomputation__status",
+    ]
+    search_fields = ["data_name", "participant__code", "data_file__sha256"]
+    list_select_related = ["participant__comparison", "measurement_point__device"]
+    raw_id_fields = ["participant", "submission", "measurement_point", "data_file",
+                     "reference_file", "uploaded_by"]  # fmt: skip
+    inlines = [RawRecomputationInline]
+
+
+@admin.register(RawRecomputation)
+class RawRecomputationAdmin(CreatedByUploadOnly):
+    list_display = ["record", "status", "sensitivity", "reported_value", "en", "fs_hz"]
+    list_filter = ["status", "method", "software_version", "record__participant__comparison"]
+    search_fields = ["record__participant__code", "record__data_name"]
+    list_select_related = ["record__participant"]
+    raw_id_fields = ["record"]

@@ -182,3 +182,132 @@ class LabAPIKey(AbstractAPIKey):
     class Meta(AbstractAPIKey.Meta):
         verbose_name = "lab API key"
         verbose_name_plural = "lab API keys"
+
+
+# --- raw time series behind a result (issue 7 item 8, formats.md §2) ----------------------
+
+
+def raw_file_path(instance: RawFile, filename: str) -> str:
+    """Content-addressed: ``raw/ab/abcdef…`` (the name the lab gave is kept on the record)."""
+    return f"raw/{instance.sha256[:2]}/{instance.sha256}"
+
+
+class RawFile(models.Model):
+    """The bytes of one uploaded raw file, stored once per SHA-256 and never modified."""
+
+    sha256 = models.CharField(max_length=64, unique=True)
+    file = models.FileField(upload_to=raw_file_path, max_length=200)
+    size = models.PositiveBigIntegerField()
+    created_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["-created_at"]
+
+    def __str__(self) -> str:
+        return f"{self.sha256[:12]}… ({self.size} B)"
+
+
+class RawRecord(models.Model):
+    """Raw record(s) attached by a laboratory to a measurement point of its submission:
+    the MEMS record, an optional reference record (``ref``/``encoder_rad``), and the
+    metadata of each (sidecar merged with the form fields, formats.md §2)."""
+
+    participant = models.ForeignKey(
+        Participant, on_delete=models.CASCADE, related_name="raw_records"
+    )
+    submission = models.ForeignKey(Submission, on_delete=models.CASCADE, related_name="raw_records")
+    measurement_point = models.ForeignKey(
+        MeasurementPoint, on_delete=models.PROTECT, related_name="raw_records"
+    )
+    data_file = models.ForeignKey(RawFile, on_delete=models.PROTECT, related_name="records")
+    data_name = models.CharField(max_length=255, help_text="File name as uploaded.")
+    metadata = models.JSONField(default=dict)
+    reference_file = models.ForeignKey(
+        RawFile,
+        null=True,
+        blank=True,
+        on_delete=models.PROTECT,
+        related_name="reference_records",
+    )
+    reference_name = models.CharField(max_length=255, blank=True)
+    reference_metadata = models.JSONField(default=dict, blank=True)
+    uploaded_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL
+    )
+    created_at = models.DateTimeField(auto_now_add=True)
+
+    class Meta:
+        ordering = ["participant", "-created_at"]
+        constraints = [
+            models.CheckConstraint(
+                condition=Q(reference_file__isnull=True) | ~Q(reference_name=""),
+                name="rawrecord_reference_named",
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.data_name} → {self.measurement_point_id} ({self.participant})"
+
+
+class RawRecomputation(models.Model):
+    """The service's recomputation of one raw record (``pending → running → succeeded |
+    failed``); one per record, so a task delivered twice cannot store two results.
+
+    ``axes`` holds every axis of the record (``pt_sensitivity --format json``); the
+    ``sensitivity`` columns are the axis of the measurement point.  ``en`` compares the
+    reported and the recomputed value: (S_rep − S_rec) / √(U_rep² + U_rec²)."""
+
+    class Status(models.TextChoices):
+        PENDING = "pending", "Pending"
+        RUNNING = "running", "Running"
+        SUCCEEDED = "succeeded", "Succeeded"
+        FAILED = "failed", "Failed"
+
+    record = models.OneToOneField(RawRecord, on_delete=models.CASCADE, related_name="recomputation")
+    status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
+    error = models.TextField(blank=True)
+    method = models.CharField(max_length=20, default="sine-fit")
+    software_version = models.CharField(max_length=40)
+    parameters = models.JSONField(default=dict)
+    fs_hz = models.FloatField(null=True, blank=True)
+    u_fs_hz = models.FloatField(null=True, blank=True)
+    axes = models.JSONField(default=list, blank=True)
+    sensitivity = models.FloatField(null=True, blank=True)
+    standard_uncertainty = models.FloatField(null=True, blank=True)
+    expanded_uncertainty = models.FloatField(null=True, blank=True)
+    coverage_factor = models.FloatField(null=True, blank=True)
+    budget = models.JSONField(default=list, blank=True)
+    reported_value = models.FloatField()
+    reported_expanded_uncertainty = models.FloatField()
+    reported_coverage_factor = models.FloatField()
+    en = models.FloatField(null=True, blank=True)
+    created_at = models.DateTimeField(auto_now_add=True)
+    started_at = models.DateTimeField(null=True, blank=True)
+    finished_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["-created_at"]
+        constraints = [
+            models.CheckConstraint(
+                condition=Q(status__in=["pending", "running", "succeeded", "failed"]),
+                name="rawrecomp_status_valid",
+            ),
+            models.CheckConstraint(
+                condition=~Q(status="succeeded") | Q(sensitivity__isnull=False),
+                name="rawrecomp_succeeded_has_value",
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"recomputation of {self.record_id} ({self.status})"
+
+    @property
+    def reported_standard_uncertainty(self) -> float:
+        return self.reported_expanded_uncertainty / self.reported_coverage_factor
+
+    @property
+    def relative_difference(self) -> float | None:
+        """(S_rec − S_rep) / S_rep in %."""
+        if self.sensitivity is None:
+            return None
+        return 100 * (self.sensitivity - self.reported_value) / self.reported_value

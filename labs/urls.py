@@ -22,6 +22,12 @@ urlpatterns = [
         views.submission_detail,
         name="submission",
     ),
+    path("lab/comparisons/<slug:code>/raw-data/", views.raw_data, name="raw_data"),
+    path(
+        "lab/comparisons/<slug:code>/raw-data/<int:pk>/",
+        views.raw_record,
+        name="raw_record",
+    ),
     path("lab/api-keys/", views.api_keys_index, name="api_keys_index"),
     path("lab/<int:lab_pk>/api-keys/", views.api_keys, name="api_keys"),
     path(

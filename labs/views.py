@@ -16,6 +16,7 @@ from django.http import Http404, HttpRequest, HttpResponse, QueryDict
 from django.shortcuts import redirect, render
 from django.urls import reverse
 from django.views.decorators.cache import never_cache
+from django.views.decorators.csrf import csrf_exempt, csrf_protect
 from django.views.decorators.http import require_GET, require_http_methods
 from django_htmx.http import HttpResponseClientRedirect
 
@@ -342,3 +343,86 @@ def api_key_revoke(request: HttpRequest, lab_pk: int, prefix: str) -> HttpRespon
         messages.success(request, f"The key “{key.name}” ({key.prefix}…) was revoked.")
         return redirect("labs:api_keys", lab_pk=lab.pk)
     return render(request, "labs/api_key_revoke.html", {"lab": lab, "key": key})
+
+
+# --- raw records behind a result (issue 7 item 8) ------------------------------------------
+
+
+def _raw_page(
+    request: HttpRequest, participant: Participant, form: object, error: str = ""
+) -> HttpResponse:
+    from labs.raw_selectors import raw_records_of
+    from labs.raw_services import human_limit
+
+    context = {
+        "participant": participant,
+        "comparison": participant.comparison,
+        "form": form,
+        "records": raw_records_of(participant),
+        "max_upload": human_limit(),
+        "error": error,
+    }
+    return render(request, "labs/raw_list.html", context, status=413 if error else 200)
+
+
+@csrf_exempt  # CSRF is checked below, once the size-limiting upload handler is in place
+@login_required
+@require_http_methods(["GET", "POST"])
+def raw_data(request: HttpRequest, code: str) -> HttpResponse:
+    """The laboratory's raw records for ``code`` and the form to attach one."""
+    from labs.raw import RawUploadLimit
+    from labs.raw_forms import RawUploadForm
+    from labs.raw_selectors import raw_point_choices
+    from labs.raw_services import raw_declared_too_large
+
+    too_large = raw_declared_too_large(request.META) if request.method == "POST" else None
+    if too_large:  # refused on the declared size, before anything reads the body
+        participant = _participant(request, code)
+        form = RawUploadForm(points=raw_point_choices(participant))
+        return _raw_page(request, participant, form, too_large)
+    if request.method == "POST":
+        request.upload_handlers.insert(
+            0, RawUploadLimit(request, limit=settings.RAW_UPLOAD_MAX_BYTES)
+        )
+    return _raw_data(request, code)
+
+
+@csrf_protect
+def _raw_data(request: HttpRequest, code: str) -> HttpResponse:
+    from labs.raw_forms import RawUploadForm
+    from labs.raw_selectors import raw_point_choices
+    from labs.raw_services import raw_upload_submit
+    from proficiency.errors import RequestTooLarge
+
+    participant = _participant(request, code)
+    points = raw_point_choices(participant)
+    try:
+        form = RawUploadForm(request.POST or None, request.FILES or None, points=points)
+        if request.method == "POST" and form.is_valid():
+            record = raw_upload_submit(form=form, participant=participant, user=request.user)
+            if record is not None:
+                messages.success(request, "The raw record was stored; its recomputation runs now.")
+                return redirect("labs:raw_record", code=code, pk=record.pk)
+    except RequestTooLarge as exc:  # raised while the body is read: nothing was stored
+        return _raw_page(request, participant, RawUploadForm(points=points), exc.message)
+    return _raw_page(request, participant, form)
+
+
+@login_required
+@require_GET
+def raw_record(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+    """One raw record: reported vs recomputed sensitivity, En, fs found, record with fit."""
+    from labs.raw_selectors import raw_record_figure, raw_record_get, raw_records_of
+
+    participant = _participant(request, code)
+    try:
+        record = raw_record_get(raw_records_of(participant), pk)
+    except NotVisible as exc:
+        raise Http404(exc.message) from None
+    context = {
+        "participant": participant,
+        "comparison": participant.comparison,
+        "record": record,
+        "figure": raw_record_figure(record),
+    }
+    return render(request, "labs/raw_record.html", context)

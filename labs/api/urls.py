@@ -2,7 +2,7 @@
 
 from django.urls import path
 
-from labs.api import views
+from labs.api import raw_views, views
 
 app_name = "api"
 
@@ -33,5 +33,15 @@ urlpatterns = [
         "comparisons/<slug:code>/submissions/<int:version>/",
         views.SubmissionDetail.as_view(),
         name="submission-detail",
+    ),
+    path(
+        "comparisons/<slug:code>/raw-data/",
+        raw_views.RawDataCollection.as_view(),
+        name="raw-data-list",
+    ),
+    path(
+        "comparisons/<slug:code>/raw-data/<int:pk>/",
+        raw_views.RawDataDetail.as_view(),
+        name="raw-data-detail",
     ),
 ]

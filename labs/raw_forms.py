@@ -1,0 +1,52 @@
+"""The web form for raw records: the same fields as the API (formats.md §1 point columns,
+formats.md §2 metadata keys); ``labs.raw_services`` validates the content."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from django import forms
+
+from proficiency.models import MeasurementPoint
+
+
+class RawUploadForm(forms.Form):
+    point = forms.ModelChoiceField(
+        queryset=MeasurementPoint.objects.none(),
+        label="Measurement point",
+        help_text="The result (of your current submission) the record is behind.",
+    )
+    file = forms.FileField(label="MEMS record", help_text="CSV, or int16 little-endian (.bin)")
+    sidecar = forms.FileField(required=False, label="Sidecar (JSON metadata)")
+    reference_file = forms.FileField(
+        required=False, label="Reference record", help_text="ref or encoder_rad channel"
+    )
+    reference_sidecar = forms.FileField(required=False, label="Reference sidecar (JSON)")
+    channels = forms.CharField(required=False, help_text="e.g. x,y,z (binary files)")
+    fs_nominal_hz = forms.CharField(required=False, label="Nominal rate (Hz)")
+    a_ref_m_s2 = forms.CharField(required=False, label="a_ref (m/s²), linear bench")
+    tilt_deg = forms.CharField(required=False, label="Tilt θ (°)")
+    rotation_deg = forms.CharField(required=False, label="Rotation α (°)")
+    radius_m = forms.CharField(required=False, label="Radius (m), curvilinear bench")
+    orientation = forms.CharField(
+        required=False, help_text='JSON, e.g. {"x": "tangential", "y": "radial", "z": "axial"}'
+    )
+    reference_fs_hz = forms.CharField(required=False, label="Reference record rate (Hz)")
+
+    def __init__(self, *args: Any, points: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.fields["point"].queryset = points
+        self.fields["point"].label_from_instance = str
+
+    def point_fields(self) -> dict[str, Any]:
+        p = self.cleaned_data["point"]
+        return {
+            "device": p.device.name, "axis": p.axis, "frequency_hz": p.frequency_hz,
+            "bench": p.bench, "direction": p.direction, "amplitude_m_s2": p.amplitude_m_s2,
+        }  # fmt: skip
+
+    def meta_fields(self) -> dict[str, Any]:
+        return {k: v for k, v in self.cleaned_data.items() if isinstance(v, str)}
+
+    def reference_fields(self) -> dict[str, Any]:
+        return {"fs_hz": self.cleaned_data.get("reference_fs_hz", "")}

@@ -1,0 +1,80 @@
+"""Read side of the raw records (issue 7 item 8): who sees which records, the stored
+files read back into records, and the record-with-fit figure.  Each owns its joins."""
+
+from __future__ import annotations
+
+from django.db.models import QuerySet
+
+from analysis.core.signals.records import Record
+from labs.models import Participant, RawFile, RawRecomputation, RawRecord
+from labs.raw import read_record
+from proficiency.errors import NotVisible
+from proficiency.models import MeasurementPoint
+
+# --- reads -------------------------------------------------------------------------------
+
+
+def raw_records_of(participant: Participant) -> QuerySet[RawRecord]:
+    return _with_joins(RawRecord.objects.filter(participant=participant))
+
+
+def raw_records_of_comparison(comparison_id: int) -> QuerySet[RawRecord]:
+    return _with_joins(RawRecord.objects.filter(participant__comparison_id=comparison_id))
+
+
+def _with_joins(qs: QuerySet[RawRecord]) -> QuerySet[RawRecord]:
+    return qs.select_related(
+        "participant", "measurement_point__device", "data_file", "reference_file",
+        "recomputation",
+    ).order_by("participant__code", "-created_at", "-pk")  # fmt: skip
+
+
+def raw_record_get(records: QuerySet[RawRecord], pk: int) -> RawRecord:
+    record = records.filter(pk=pk).first()
+    if record is None:
+        raise NotVisible(f"No raw record {pk} is visible to you.")
+    return record
+
+
+def raw_record_read(record: RawRecord) -> tuple[Record, Record | None]:
+    """The stored files read back into records (the same readers as at upload)."""
+    mems = read_record(_bytes(record.data_file), record.data_name, record.metadata)
+    reference = None
+    if record.reference_file is not None:
+        reference = read_record(
+            _bytes(record.reference_file), record.reference_name, record.reference_metadata
+        )
+    return mems, reference
+
+
+def _bytes(raw: RawFile) -> bytes:
+    with raw.file.open("rb") as fh:
+        return fh.read()
+
+
+def raw_record_figure(record: RawRecord) -> str | None:
+    """SVG of a stretch of the point's axis with the fitted sine at the rate found; None
+    until the recomputation has succeeded."""
+    from labs.raw import fit_figure_svg
+
+    row = getattr(record, "recomputation", None)
+    if row is None or row.status != RawRecomputation.Status.SUCCEEDED or row.fs_hz is None:
+        return None
+    point = record.measurement_point
+    axis = next((a for a in row.axes if a["axis"] == point.axis and a["sensitivity"]), None)
+    f = axis["analysis_frequency_hz"] if axis else point.frequency_hz
+    mems, _ = raw_record_read(record)
+    return fit_figure_svg(mems, point.axis.lower(), f, row.fs_hz)
+
+
+def raw_point_choices(participant: Participant) -> QuerySet[MeasurementPoint]:
+    """Points where the participant's current submission has a result (linear and
+    curvilinear benches: the ones a raw record can be recomputed on)."""
+    submission = participant.submissions.order_by("-version").first()
+    return (
+        MeasurementPoint.objects.filter(
+            results__submission=submission, bench__in=("linear", "curvilinear")
+        )
+        .select_related("device")
+        .order_by(*MeasurementPoint._meta.ordering)
+    )

@@ -1,0 +1,383 @@
+"""Raw records behind a result (issue 7 item 8): upload, storage by content hash, and the
+recomputation job (``pending → running → succeeded | failed``).
+
+``raw_record_upload`` validates everything a person can get wrong (which point, the
+metadata, the file itself, read by the same readers as ``pt_sensitivity``) before
+anything is stored, stores each file once per SHA-256, creates the record and its
+pending recomputation in one transaction and enqueues ``raw_recompute_task`` after
+commit.  ``raw_recompute_execute`` claims the row with a conditional UPDATE and writes
+the outputs with a second conditional UPDATE, so a task delivered twice leaves one
+result (the row is one per record: a OneToOne).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import hashlib
+import logging
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from django.conf import settings
+from django.contrib.auth.models import AbstractBaseUser
+from django.core.files.base import ContentFile
+from django.db import IntegrityError, transaction
+from django.utils import timezone
+
+import proficiency
+from analysis.core.groups import CoreInputError
+from analysis.core.signals.sensitivity import record_sensitivity
+from labs.models import Participant, RawFile, RawRecomputation, RawRecord, Result, Submission
+from labs.raw import read_record
+from labs.raw_selectors import raw_record_read
+from proficiency.errors import RequestTooLarge, ValidationFailed
+from proficiency.models import MeasurementPoint
+
+log = logging.getLogger(__name__)
+R = RawRecomputation.Status
+METHOD = "sine-fit"
+STALE_AFTER = dt.timedelta(hours=1)  # a "running" row older than this was lost with its worker
+POINT_FIELDS = ("device", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2")
+
+
+@dataclass(frozen=True)
+class Upload:
+    """One uploaded raw file with its metadata (sidecar merged with form fields)."""
+
+    content: bytes
+    name: str
+    meta: dict[str, Any]
+
+
+def human_limit() -> str:
+    from labs.importers.values import human_size
+
+    return human_size(settings.RAW_UPLOAD_MAX_BYTES)
+
+
+def check_size(size: int, what: str) -> None:
+    if size > settings.RAW_UPLOAD_MAX_BYTES:
+        from labs.importers.values import human_size
+
+        raise RequestTooLarge(
+            f"The {what} is {human_size(size)}; the limit for raw records is {human_limit()}."
+        )
+
+
+#: two files, two sidecars and the form fields on top of the files themselves
+MULTIPART_SLACK_BYTES = 256 * 1024
+
+
+def raw_request_limit() -> int:
+    return 2 * settings.RAW_UPLOAD_MAX_BYTES + MULTIPART_SLACK_BYTES
+
+
+def raw_declared_too_large(meta: Mapping[str, Any]) -> str | None:
+    """The 413 message when the declared Content-Length alone is over the limit."""
+    from labs.importers.values import human_size
+
+    try:
+        length = int(meta.get("CONTENT_LENGTH") or 0)
+    except ValueError:
+        length = 0
+    if length <= raw_request_limit():
+        return None
+    return (
+        f"The upload is {human_size(length)}; the limit for raw records is {human_limit()} "
+        "per file. Nothing was stored."
+    )
+
+
+# --- upload ------------------------------------------------------------------------------
+
+
+def raw_point_find(participant: Participant, fields: Mapping[str, Any]) -> MeasurementPoint:
+    """The comparison's point named like a results-table row (formats.md §1 columns)."""
+    found = MeasurementPoint.objects.filter(
+        comparison=participant.comparison,
+        device__name=fields["device"],
+        axis=str(fields["axis"]).upper(),
+        frequency_hz=fields["frequency_hz"],
+        bench=fields["bench"],
+        direction=fields.get("direction") or "vertical",
+        amplitude_m_s2=fields.get("amplitude_m_s2"),
+    ).first()
+    if found is None:
+        described = ", ".join(f"{k} {fields.get(k)}" for k in POINT_FIELDS if fields.get(k))
+        raise ValidationFailed(
+            f"{participant.comparison.code} has no measurement point {described}; see the "
+            "comparison's measurement points (the results template lists them).",
+            errors=[{"field": "device", "message": "no such measurement point"}],
+        )
+    return found
+
+
+def _reported(participant: Participant, point: MeasurementPoint) -> tuple[Submission, Result]:
+    """The participant's current (latest) submission and its result at ``point``."""
+    submission = participant.submissions.order_by("-version").first()
+    result = submission.results.filter(measurement_point=point).first() if submission else None
+    if submission is None or result is None:
+        raise ValidationFailed(
+            f"Your current submission has no result for {point}; report the sensitivity "
+            "first, then attach the raw records it came from.",
+            errors=[{"field": "device", "message": "no reported result at this point"}],
+        )
+    return submission, result
+
+
+def _complete_meta(meta: dict[str, Any], point: MeasurementPoint, field: str) -> dict[str, Any]:
+    """bench and frequency_hz default to the point's; a contradiction is refused."""
+    out = {"bench": point.bench, "frequency_hz": point.frequency_hz} | meta
+    for key in ("bench", "frequency_hz"):
+        same = str(out[key]) == str(getattr(point, key))
+        if key == "frequency_hz":
+            try:
+                same = math.isclose(float(out[key]), point.frequency_hz)
+            except (TypeError, ValueError):
+                same = True  # the reader says what is wrong with the number
+        if not same:
+            raise ValidationFailed(
+                f"The metadata says {key} {out[key]!r} but the measurement point has "
+                f"{getattr(point, key)!r}.",
+                errors=[{"field": field, "message": f"{key} contradicts the measurement point"}],
+            )
+    return out
+
+
+def _validated(upload: Upload, field: str, meta: dict[str, Any]) -> dict[str, Any]:
+    check_size(len(upload.content), f"file {upload.name!r}")
+    try:
+        record = read_record(upload.content, upload.name, meta)
+    except CoreInputError as exc:
+        error = {"field": field, "message": str(exc)}
+        raise ValidationFailed(str(exc), errors=[error]) from None
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in record.meta.items()}
+
+
+def raw_file_store(content: bytes) -> RawFile:
+    """The stored file with these bytes, written once (content-addressed, read-only)."""
+    digest = hashlib.sha256(content).hexdigest()
+    existing = RawFile.objects.filter(sha256=digest).first()
+    if existing is not None:
+        if not existing.file.storage.exists(existing.file.name):  # lost (a restored backup):
+            _write(existing.file.storage, existing.file.name, content)  # the same bytes again
+        return existing
+    raw = RawFile(sha256=digest, size=len(content))
+    name = raw.file.field.generate_filename(raw, digest)
+    storage = raw.file.storage
+    if storage.exists(name):  # left by a rolled-back upload: same hash, same bytes
+        raw.file.name = name
+    else:
+        raw.file.save(digest, ContentFile(content), save=False)
+        _read_only(storage, raw.file.name)
+    try:
+        with transaction.atomic():
+            raw.save()
+    except IntegrityError:  # stored meanwhile by a concurrent upload of the same bytes
+        return RawFile.objects.get(sha256=digest)
+    return raw
+
+
+def _write(storage: Any, name: str, content: bytes) -> None:
+    stored = storage.save(name, ContentFile(content))
+    if stored != name:  # pragma: no cover - the name was checked free just before
+        raise RuntimeError(f"raw file {name} was stored as {stored}")
+    _read_only(storage, name)
+
+
+def _read_only(storage: Any, name: str) -> None:
+    with contextlib.suppress(NotImplementedError, OSError):  # not a local file system
+        os.chmod(storage.path(name), 0o440)
+
+
+def raw_record_upload(
+    *,
+    participant: Participant,
+    point_fields: Mapping[str, Any],
+    data: Upload,
+    reference: Upload | None = None,
+    user: AbstractBaseUser | None = None,
+) -> RawRecord:
+    """Attach raw record(s) to a point of the participant's current submission."""
+    point = raw_point_find(participant, point_fields)
+    submission, result = _reported(participant, point)
+    meta = _validated(data, "file", _complete_meta(data.meta, point, "file"))
+    ref_meta: dict[str, Any] = {}
+    if reference is not None:
+        base = {"frequency_hz": meta["frequency_hz"]} | reference.meta
+        ref_meta = _validated(reference, "reference_file", base)
+    with transaction.atomic():
+        record = RawRecord.objects.create(
+            participant=participant,
+            submission=submission,
+            measurement_point=point,
+            data_file=raw_file_store(data.content),
+            data_name=data.name,
+            metadata=meta,
+            reference_file=raw_file_store(reference.content) if reference else None,
+            reference_name=reference.name if reference else "",
+            reference_metadata=ref_meta,
+            uploaded_by=user,
+        )
+        _recomputation_create(record, result)
+    return record
+
+
+def _recomputation_create(record: RawRecord, result: Result) -> RawRecomputation:
+    from labs.tasks import raw_recompute_task
+
+    recomputation = RawRecomputation.objects.create(
+        record=record,
+        method=METHOD,
+        software_version=proficiency.__version__,
+        parameters=_parameters(record),
+        reported_value=result.value,
+        reported_expanded_uncertainty=result.expanded_uncertainty,
+        reported_coverage_factor=result.coverage_factor,
+    )
+    transaction.on_commit(lambda: raw_recompute_task.delay(record.pk))
+    return recomputation
+
+
+def _parameters(record: RawRecord) -> dict[str, Any]:
+    """Everything that determines the result, with the files by hash (formats.md §2)."""
+    return {
+        "method": METHOD,
+        "data_sha256": record.data_file.sha256,
+        "data_name": record.data_name,
+        "metadata": record.metadata,
+        "reference_sha256": record.reference_file.sha256 if record.reference_file else None,
+        "reference_name": record.reference_name,
+        "reference_metadata": record.reference_metadata,
+        "axis": record.measurement_point.axis,
+        "direction": record.measurement_point.direction,
+    }
+
+
+# --- recomputation -------------------------------------------------------------------------
+
+
+def _claim(record_id: int) -> bool:
+    """pending → running, or take over a running row whose worker was lost."""
+    now = timezone.now()
+    fresh = {"status": R.RUNNING, "started_at": now, "error": ""}
+    rows = RawRecomputation.objects.filter(record_id=record_id)
+    if rows.filter(status=R.PENDING).update(**fresh):
+        return True
+    return bool(rows.filter(status=R.RUNNING, started_at__lt=now - STALE_AFTER).update(**fresh))
+
+
+def raw_recompute_execute(*, record_id: int) -> str:
+    """Recompute record ``record_id``; a no-op (returns the status) unless it is pending."""
+    if not _claim(record_id):
+        row = RawRecomputation.objects.filter(record_id=record_id).first()
+        return row.status if row else "missing"
+    row = RawRecomputation.objects.select_related(
+        "record__measurement_point", "record__data_file", "record__reference_file"
+    ).get(record_id=record_id)
+    try:
+        outputs = _outputs(row)
+    except CoreInputError as exc:
+        return _finish(row, {"status": R.FAILED, "error": str(exc)})
+    except Exception as exc:  # any other error is shown too, never a silent stuck row
+        log.exception("raw recomputation of record %s failed", record_id)
+        return _finish(row, {"status": R.FAILED, "error": f"{type(exc).__name__}: {exc}"})
+    return _finish(row, {"status": R.SUCCEEDED, **outputs})
+
+
+def _finish(row: RawRecomputation, fields: dict[str, Any]) -> str:
+    """Write the outputs only if this task still owns the running row."""
+    fields["finished_at"] = timezone.now()
+    RawRecomputation.objects.filter(pk=row.pk, status=R.RUNNING, started_at=row.started_at).update(
+        **fields
+    )
+    return str(RawRecomputation.objects.get(pk=row.pk).status)
+
+
+def _outputs(row: RawRecomputation) -> dict[str, Any]:
+    record = row.record
+    point = record.measurement_point
+    mems, reference = raw_record_read(record)
+    result = record_sensitivity(mems, reference, row.method)  # type: ignore[arg-type]
+    axes = result.to_dict()["axes"]
+    chosen = _axis_of_point(axes, point)
+    s, big_u = chosen["sensitivity"], chosen["expanded_uncertainty"]
+    return {
+        "fs_hz": result.fs_hz,
+        "u_fs_hz": result.u_fs_hz,
+        "axes": axes,
+        "sensitivity": s,
+        "standard_uncertainty": chosen["standard_uncertainty"],
+        "expanded_uncertainty": big_u,
+        "coverage_factor": chosen["coverage_factor"],
+        "budget": chosen["budget"],
+        "en": en_number(row.reported_value, row.reported_expanded_uncertainty, s, big_u),
+    }
+
+
+def _axis_of_point(axes: list[dict[str, Any]], point: MeasurementPoint) -> dict[str, Any]:
+    """The record's result for the point's axis (and direction on the curvilinear bench)."""
+    want_direction = point.bench == "curvilinear"
+    for a in axes:
+        if a["axis"] == point.axis and (not want_direction or a["direction"] == point.direction):
+            if a["sensitivity"] is None:
+                raise CoreInputError(f"axis {point.axis}: {a['status']}. {a['note']}".strip())
+            return a
+    given = ", ".join(f"{a['axis']} {a['direction']}" for a in axes)
+    raise CoreInputError(
+        f"the record gives no sensitivity for axis {point.axis} {point.direction} "
+        f"(it gives {given}); check 'orientation' in the metadata"
+    )
+
+
+def en_number(s_rep: float, big_u_rep: float, s_rec: float, big_u_rec: float) -> float:
+    """En = (S_reported − S_recomputed) / √(U_rep² + U_rec²) (ISO 13528:2022 §9.7 form)."""
+    return (s_rep - s_rec) / math.hypot(big_u_rep, big_u_rec)
+
+
+def raw_upload_build(
+    *, file: Any, sidecar: Any = None, fields: Mapping[str, Any] | None = None, field: str
+) -> Upload:
+    """An :class:`Upload` from an uploaded file, its optional JSON sidecar and the metadata
+    form fields (which replace sidecar keys); 400 naming ``field`` on bad metadata."""
+    from analysis.core.signals.records import SignalInputError
+    from labs.raw import form_metadata, sidecar_json
+
+    check_size(file.size, f"file {file.name!r}")
+    try:
+        meta = sidecar_json(sidecar.read(), sidecar.name) if sidecar is not None else {}
+        meta |= form_metadata(fields or {})
+    except SignalInputError as exc:
+        error = {"field": field, "message": str(exc)}
+        raise ValidationFailed(str(exc), errors=[error]) from None
+    return Upload(content=file.read(), name=os.path.basename(file.name), meta=meta)
+
+
+def raw_upload_submit(
+    *, form: Any, participant: Participant, user: AbstractBaseUser | None
+) -> RawRecord | None:
+    """The web form's upload; errors go onto the form (None returned)."""
+    data = form.cleaned_data
+    try:
+        main = raw_upload_build(
+            file=data["file"], sidecar=data.get("sidecar"), fields=form.meta_fields(),
+            field="file",
+        )  # fmt: skip
+        reference = None
+        if data.get("reference_file") is not None:
+            reference = raw_upload_build(
+                file=data["reference_file"], sidecar=data.get("reference_sidecar"),
+                fields=form.reference_fields(), field="reference_file",
+            )  # fmt: skip
+        return raw_record_upload(
+            participant=participant, point_fields=form.point_fields(), data=main,
+            reference=reference, user=user,
+        )  # fmt: skip
+    except ValidationFailed as exc:
+        field = (exc.errors[0].get("field") if exc.errors else None) or None
+        form.add_error(field if field in form.fields else None, exc.message)
+        return None
