@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 HOST ?= 127.0.0.1:8000
 
-.PHONY: run test lint format migrate demo bench clean
+.PHONY: run serve test lint format migrate demo bench clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,12 @@ demo: migrate
 run: demo
 	@echo "Serving on http://$(HOST)/  (admin: http://$(HOST)/admin/)"
 	$(PY) manage.py runserver $(HOST)
+
+# Production mode on one machine: gunicorn + Celery worker + Celery beat (deploy/serve.py),
+# after migrate, collectstatic and check --deploy. Needs SECRET_KEY, DATABASE_URL (PostgreSQL)
+# and CELERY_BROKER_URL, from the environment or ENV_FILE=path (deploy/env.example). Ctrl-C stops all.
+serve: $(VENV)/.runtime
+	$(PY) deploy/serve.py
 
 test: $(VENV)/.dev
 	$(PY) -m pytest -n 2

@@ -2,14 +2,17 @@
 
 from django.contrib import admin
 from django.urls import include, path
-from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerView
+from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerSplitView
 
 from labs import views as lab_views
+from proficiency.health import healthz
 
 admin.site.site_header = "Proficiency testing — administration"
 admin.site.site_title = "PT administration"
 
 urlpatterns = [
+    # Load balancer / systemd / container health check: database and broker, no auth, no data.
+    path("healthz", healthz, name="healthz"),
     # "/" is a lab member's dashboard, the public landing page for everyone else.
     path("", lab_views.home, name="home"),
     path("", include("labs.urls")),
@@ -22,5 +25,6 @@ urlpatterns = [
     path("api/v1/", include("proficiency.api")),
     path("api/v1/", include("analysis.reports.api")),
     path("api/schema/", SpectacularAPIView.as_view(), name="schema"),
-    path("api/docs/", SpectacularSwaggerView.as_view(url_name="schema"), name="api-docs"),
+    # The split view serves Swagger UI's start-up script as a file (CSP: no inline script).
+    path("api/docs/", SpectacularSwaggerSplitView.as_view(url_name="schema"), name="api-docs"),
 ]

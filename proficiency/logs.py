@@ -1,0 +1,37 @@
+"""Structured logs: one JSON object per line (``LOG_FORMAT=json``, the production default).
+
+Used by Django, the Celery worker and beat (``CELERY_WORKER_HIJACK_ROOT_LOGGER``
+is off, so they log through the same handler) and gunicorn
+(``deploy/gunicorn.conf.py``). Fields: ``time`` (UTC, ISO 8601), ``level``,
+``logger``, ``message``, ``process``, the exception text when there is one,
+and any ``extra={...}`` given to the logging call.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import logging
+
+#: Attributes every LogRecord has; anything else was passed with ``extra=``.
+_STANDARD = set(vars(logging.LogRecord("", 0, "", 0, "", None, None))) | {"message", "asctime"}
+
+
+class JsonFormatter(logging.Formatter):
+    """A log record as one line of JSON."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        time = dt.datetime.fromtimestamp(record.created, tz=dt.UTC)
+        entry: dict[str, object] = {
+            "time": time.isoformat(timespec="milliseconds"),
+            "level": record.levelname,
+            "logger": record.name,
+            "message": record.getMessage(),
+            "process": record.process,
+        }
+        for key, value in vars(record).items():
+            if key not in _STANDARD and not key.startswith("_"):
+                entry[key] = value
+        if record.exc_info:
+            entry["exception"] = self.formatException(record.exc_info)
+        return json.dumps(entry, default=str, ensure_ascii=False)
