@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from django.db import transaction
 from django.urls import path
 from drf_spectacular.utils import extend_schema
 from rest_framework import serializers, status
@@ -20,7 +21,7 @@ from labs.services import participant_add
 from proficiency import protocols
 from proficiency.errors import ValidationFailed
 from proficiency.models import Comparison, Device
-from proficiency.serializers import NewComparisonSerializer
+from proficiency.serializers import POSITIVE, NewComparisonSerializer
 from proficiency.services import (
     comparison_apply_template,
     comparison_create,
@@ -28,14 +29,18 @@ from proficiency.services import (
 )
 
 
+def _problems(field: str, problems: Any) -> list[dict[str, Any]]:
+    """One error per field; a list field's errors come by index (``axes[2]``)."""
+    if isinstance(problems, dict):
+        return [e for i, p in problems.items() for e in _problems(f"{field}[{i}]", p)]
+    return [{"row": None, "field": field, "message": str(problems[0])}]
+
+
 def _valid(serializer: serializers.Serializer) -> dict[str, Any]:
     if not serializer.is_valid():
         raise ValidationFailed(
             "The request does not fit; see errors.",
-            errors=[
-                {"row": None, "field": field, "message": str(problems[0])}
-                for field, problems in serializer.errors.items()
-            ],
+            errors=[e for f, p in serializer.errors.items() for e in _problems(f, p)],
         )
     return dict(serializer.validated_data)
 
@@ -59,6 +64,7 @@ class DeviceInSerializer(serializers.ModelSerializer):
             "tolerance_relative", "tolerance_distribution",
         ]  # fmt: skip
         validators: list[Any] = []
+        extra_kwargs = {"nominal_sensitivity": POSITIVE, "tolerance": POSITIVE}
 
 
 class DeviceAdd(ApiView):
@@ -122,13 +128,18 @@ class Invite(ApiView):
         access = self.access(code)
         require_coordinator(access)
         wanted = _valid(InviteSerializer(data=request.data))["laboratories"]
-        labs = {str(lab.pk): lab for lab in Laboratory.objects.filter(pk__in=[
-            w for w in wanted if w.isdigit()])} | {lab.name: lab for lab in
-            Laboratory.objects.filter(name__in=wanted)}  # fmt: skip
+        # ids are plain ASCII digits that fit a bigint ("¹".isdigit() is True in Python)
+        ids = [int(w) for w in wanted if w.isascii() and w.isdigit() and len(w) <= 18]
+        labs = {str(lab.pk): lab for lab in Laboratory.objects.filter(pk__in=ids)} | {
+            lab.name: lab for lab in Laboratory.objects.filter(name__in=wanted)
+        }
         unknown = [w for w in wanted if w not in labs]
         if unknown:
             raise ValidationFailed(f"Unknown laboratories: {', '.join(unknown)}.")
-        added = [participant_add(comparison=access.comparison, laboratory=labs[w]) for w in wanted]
+        with transaction.atomic():  # all invited or none
+            added = [
+                participant_add(comparison=access.comparison, laboratory=labs[w]) for w in wanted
+            ]
         body = {"participants": [{"laboratory": p.laboratory.name, "code": p.code} for p in added]}
         return Response(body, status=status.HTTP_201_CREATED)
 

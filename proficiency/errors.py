@@ -21,7 +21,8 @@ class ApplicationError(Exception):
     def __init__(self, message: str, *, errors: list[dict[str, Any]] | None = None) -> None:
         super().__init__(message)
         self.message = message
-        self.errors = errors or []
+        # formats.md §3: every error has row, field and message (row None when not a row's)
+        self.errors = [{"row": None, "field": None, **e} for e in errors or []]
 
 
 class ValidationFailed(ApplicationError):
@@ -57,6 +58,19 @@ def api_exception_handler(exc: Exception, context: dict[str, Any]) -> Response |
     if isinstance(exc, ApplicationError):
         return Response({"detail": exc.message, "errors": exc.errors}, status=exc.status_code)
     response = exception_handler(exc, context)
-    if response is not None and isinstance(response.data, dict):
+    if response is None:
+        return None
+    if isinstance(response.data, dict) and "detail" in response.data:
         response.data.setdefault("errors", [])
+    else:  # DRF's field errors (a serializer's, a filter set's): the same shape as ours
+        response.data = {"detail": "The request is not valid.", "errors": _rows(response.data)}
     return response
+
+
+def _rows(data: Any, field: str | None = None) -> list[dict[str, Any]]:
+    """``{"field": ["message", ...]}`` or ``["message"]`` -> formats.md §3 error rows."""
+    if isinstance(data, dict):
+        return [e for key, value in data.items() for e in _rows(value, str(key))]
+    if isinstance(data, list):
+        return [e for value in data for e in _rows(value, field)]
+    return [{"row": None, "field": field, "message": str(data)}]

@@ -16,23 +16,34 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 
 from analysis.api import serializers as s
+from analysis.core.groups import CoreInputError
 from analysis.models import AnalysisRun, Score
 from analysis.pipeline import matrix_record
 from analysis.selectors import SCORE_FILTERS, current_run, lab_matrices, run_matrices, run_scores
 from analysis.services import analysis_run_start
-from labs.api.permissions import ComparisonAccess
+from labs.api.permissions import ComparisonAccess, caller_of, comparisons_for
 from labs.api.views import ApiView
 from labs.models import Result, Submission
 from labs.review import submission_decide, submission_request_check
 from proficiency.errors import NotVisible, StateConflict, ValidationFailed
 from proficiency.models import ComparisonStatus
-from proficiency.selectors import comparisons_visible_to
 from proficiency.services import comparison_publish, comparison_transition
 
 FACTORS = ("axis", "frequency", "device", "bench", "direction", "lab")
 POINT_FILTERS = [
     OpenApiParameter(k, str, description=f"only this {k}") for k in SCORE_FILTERS
 ]  # fmt: skip
+
+
+def number(value: str, field: str) -> float:
+    """A numeric query parameter, or a 400 that names it (never a 500 from the ORM)."""
+    try:
+        return float(value)
+    except ValueError:
+        raise ValidationFailed(
+            f"{field} must be a number, got {value!r}.",
+            errors=[{"row": None, "field": field, "message": "must be a number"}],
+        ) from None
 
 
 def require_coordinator(access: ComparisonAccess) -> None:
@@ -81,7 +92,7 @@ class AnalysisRunDetail(ApiView):
     @extend_schema(responses=s.AnalysisRunSerializer)
     def get(self, request: Request, pk: int) -> Response:
         run = AnalysisRun.objects.filter(
-            pk=pk, comparison__in=comparisons_visible_to(request.user)
+            pk=pk, comparison__in=comparisons_for(caller_of(request))
         ).first()
         if run is None or not self.access(run.comparison.code).is_coordinator:
             raise NotVisible(f"No analysis run {pk} is visible to you.")
@@ -103,6 +114,8 @@ class ScoreList(ApiView, generics.ListAPIView):
         access = self.access(self.kwargs["code"])
         published_or_coordinator(access)
         filters = {k: self.request.query_params.get(k, "") for k in SCORE_FILTERS}
+        if filters["frequency_hz"]:
+            number(filters["frequency_hz"], "frequency_hz")
         if not access.is_coordinator:
             assert access.participant is not None
             filters["lab"] = access.participant.code
@@ -116,6 +129,10 @@ class CompatibilityQuery(serializers.Serializer):
     frequency_hz = serializers.CharField(required=False)
     bench = serializers.CharField(required=False)
     direction = serializers.CharField(required=False)
+
+    def validate_frequency_hz(self, value: str) -> str:
+        number(value, "frequency_hz")
+        return value
 
 
 class CompatibilityView(ApiView):
@@ -135,7 +152,14 @@ class CompatibilityView(ApiView):
         params = dict(query.validated_data)
         factor = params.pop("factor")
         if factor == "lab":
-            data = [matrix_record(m) for m in lab_matrices(access.comparison, params)]
+            try:
+                found = lab_matrices(access.comparison, params)
+            except CoreInputError as exc:  # e.g. no accepted result at the selected points
+                raise ValidationFailed(
+                    "No lab matrix for this selection.",
+                    errors=[{"row": None, "field": None, "message": str(exc)}],
+                ) from None
+            data = [matrix_record(m) for m in found]
         else:
             data = [m.record() for m in run_matrices(shown_run(access), factor, params)]
         return Response(data)

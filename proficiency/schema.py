@@ -1,0 +1,41 @@
+"""OpenAPI schema post-processing (drf-spectacular hook).
+
+Every ``/api/v1/`` view answers errors through :func:`proficiency.errors.api_exception_handler`
+with the same ``Error`` body (formats.md §3), but most views only declare their success
+response. This hook documents the error statuses any of them can return, so that the
+schema matches what clients receive (checked by ``tests/security/test_schema_fuzz.py``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+ERROR_REF = {"$ref": "#/components/schemas/Error"}
+#: status -> description, for every operation
+COMMON = {
+    "400": "Bad input; `errors` lists every bad row and field",
+    "401": "No credentials, or an invalid, revoked or expired API key",
+    "403": "Authenticated, but without the role this needs",
+    "404": "No such object, or not visible to you (also other laboratories')",
+    "409": "The object's state does not allow this",
+    "429": "Too many requests; retry after the Retry-After header's seconds",
+}
+#: only where a request body is read
+WITH_BODY = {"413": "The request body or the file is too large"}
+
+
+def error_responses(result: dict[str, Any], generator: Any, request: Any, public: Any) -> dict:
+    """Add the shared error responses that an operation does not declare itself."""
+    for path, operations in result.get("paths", {}).items():
+        if not path.startswith("/api/v1/"):
+            continue
+        for operation in operations.values():
+            statuses = COMMON | (WITH_BODY if "requestBody" in operation else {})
+            responses = operation.setdefault("responses", {})
+            for status, description in statuses.items():
+                responses.setdefault(
+                    status,
+                    {"content": {"application/json": {"schema": ERROR_REF}},
+                     "description": description},
+                )  # fmt: skip
+    return result

@@ -1,0 +1,415 @@
+"""The permission matrix's expectations: one row per route, statuses per persona.
+
+A row gives one status per persona, in the order of ``tests.security.world.PERSONAS``:
+
+    anonymous a_staff a_manager b_staff coord1 coord2 key_a key_a_revoked superuser
+
+``a|b`` accepts either (a health probe may be down). URL kwargs are lab A's objects in
+comparison 1; ``PK`` and ``TOKEN`` say which object a shared kwarg name means.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from tests.security.world import PERSONAS
+
+
+@dataclass(frozen=True)
+class Row:
+    """Expected statuses for GET and POST, one per persona (see the module docstring)."""
+
+    get: str
+    post: str
+    query: str = ""
+    #: PUT, PATCH, DELETE where the view implements them
+    other: dict[str, str] = field(default_factory=dict)
+
+    def expected(self, method: str) -> dict[str, set[int]]:
+        """Per persona, the status (or ``a|b``: either, for a health probe)."""
+        line = {"GET": self.get, "POST": self.post}.get(method) or self.other[method]
+        codes = line.split()
+        assert len(codes) == len(PERSONAS), f"{self}: {len(codes)} statuses"
+        return {
+            p: {int(c) for c in code.split("|")} for p, code in zip(PERSONAS, codes, strict=True)
+        }
+
+
+#: ``pk`` names different objects in different routes: which of ``World.url_values``
+PK = {
+    "coordinator/<slug:code>/points/<int:pk>/": "point",
+    "coordinator/<slug:code>/review/results/<int:pk>/check/": "result",
+    "coordinator/<slug:code>/analysis/runs/<int:pk>/": "run",
+    "coordinator/<slug:code>/analysis/runs/<int:pk>/progress/": "run",
+    "api/v1/analysis-runs/<int:pk>/": "run",
+    # the world holds no raw record: any pk is someone else's (or nobody's) -> 404;
+    # tests/labs/test_raw_data*.py check a real record persona by persona
+    "lab/comparisons/<slug:code>/raw-data/<int:pk>/": "result",
+    "api/v1/comparisons/<slug:code>/raw-data/<int:pk>/": "result",
+}
+#: the password-reset link carries its own token (an invalid one here)
+TOKEN = {"accounts/reset/<uidb64>/<token>/": "reset_token"}
+
+#                  anon  aS   aM   bS   c1   c2   kA   kR   su
+TABLE: dict[str, Row] = {
+    # public probe: 200 (or 503 when the database or broker is down)
+    "healthz": Row(
+        get="200|503 200|503 200|503 200|503 200|503 200|503 200|503 200|503 200|503",
+        post="405 405 405 405 405 405 405 405 405",
+    ),
+    # landing page for everyone, a lab member's dashboard
+    "": Row(
+        get="200 200 200 200 200 200 200 200 200",
+        post="405 405 405 405 405 405 405 405 405",
+    ),
+    # the dashboard lists only the user's own labs' participations (none for coordinators)
+    "lab/": Row(
+        get="302 200 200 200 200 200 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "lab/comparisons/<slug:code>/": Row(
+        get="302 200 200 200 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "lab/comparisons/<slug:code>/results/": Row(
+        get="302 200 200 200 404 404 302 302 404",
+        post="302 200 200 200 404 404 302 302 404",
+    ),
+    "lab/comparisons/<slug:code>/upload/": Row(
+        get="302 200 200 200 404 404 302 302 404",
+        post="302 200 200 200 404 404 302 302 404",
+    ),
+    "lab/comparisons/<slug:code>/template.<str:fmt>": Row(
+        get="302 200 200 200 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "lab/comparisons/<slug:code>/submissions/": Row(
+        get="302 200 200 200 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    # version 2 is lab A's alone: lab B has no version 2
+    "lab/comparisons/<slug:code>/submissions/<int:version>/": Row(
+        get="302 200 200 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    # managers are redirected to their lab's key page
+    "lab/api-keys/": Row(
+        get="302 404 302 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    # lab A's managers only; staff and everyone else 404
+    "lab/<int:lab_pk>/api-keys/": Row(
+        get="302 404 200 404 404 404 302 302 404",
+        post="302 404 200 404 404 404 302 302 404",
+    ),
+    "lab/<int:lab_pk>/api-keys/<str:prefix>/revoke/": Row(
+        get="302 404 200 404 404 404 302 302 404",
+        post="302 404 302 404 404 404 302 302 404",
+    ),
+    "coordinator/": Row(
+        get="302 404 404 404 200 200 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    # needs proficiency.add_comparison (both coordinators have it)
+    "coordinator/new/": Row(
+        get="302 404 404 404 200 200 302 302 200",
+        post="302 404 404 404 200 200 302 302 200",
+    ),
+    "coordinator/<slug:code>/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/edit/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 404 404 404 200 404 302 302 200",
+    ),
+    "coordinator/<slug:code>/status/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 302 404 302 302 302",
+    ),
+    "coordinator/<slug:code>/report-notes/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 404 404 404 200 404 302 302 200",
+    ),
+    "coordinator/<slug:code>/devices/new/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 404 404 404 200 404 302 302 200",
+    ),
+    "coordinator/<slug:code>/points/generate/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 404 404 404 200 404 302 302 200",
+    ),
+    "coordinator/<slug:code>/points/<int:pk>/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 404 404 404 200 404 302 302 200",
+    ),
+    "coordinator/<slug:code>/participants/invite/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 404 404 404 200 404 302 302 200",
+    ),
+    "coordinator/<slug:code>/participants/<str:participant>/reference/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 302 404 302 302 302",
+    ),
+    "coordinator/<slug:code>/review/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/review/<str:participant>/v<int:version>/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 404 404 404 200 404 302 302 200",
+    ),
+    "coordinator/<slug:code>/review/results/<int:pk>/check/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 302 404 302 302 302",
+    ),
+    "coordinator/<slug:code>/analysis/run/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 302 404 302 302 302",
+    ),
+    "coordinator/<slug:code>/analysis/runs/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/analysis/runs/<int:pk>/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/analysis/runs/<int:pk>/progress/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/publish/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 302 404 302 302 302",
+    ),
+    "coordinator/<slug:code>/results/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/scores/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/scores.<str:fmt>": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/charts/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/compatibility/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    # participants' results pages: 404 until published (comparison 1 is analysed)
+    "results/<slug:code>/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "results/<slug:code>/scores/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "results/<slug:code>/scores.<str:fmt>": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "results/<slug:code>/charts/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "results/<slug:code>/compatibility/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    # participants see the page (no report before publication), coordinator 2 404
+    "reports/<slug:code>/": Row(
+        get="302 200 200 200 200 404 302 302 200",
+        post="302 200 200 200 200 404 302 302 200",
+    ),
+    "accounts/login/": Row(
+        get="200 200 200 200 200 200 200 200 200",
+        post="200 200 200 200 200 200 200 200 200",
+    ),
+    "accounts/logout/": Row(
+        get="405 405 405 405 405 405 405 405 405",
+        post="302 302 302 302 302 302 302 302 302",
+    ),
+    "accounts/password_change/": Row(
+        get="302 200 200 200 200 200 302 302 200",
+        post="302 200 200 200 200 200 302 302 200",
+    ),
+    "accounts/password_change/done/": Row(
+        get="302 200 200 200 200 200 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "accounts/password_reset/": Row(
+        get="200 200 200 200 200 200 200 200 200",
+        post="200 200 200 200 200 200 200 200 200",
+    ),
+    "accounts/password_reset/done/": Row(
+        get="200 200 200 200 200 200 200 200 200",
+        post="405 405 405 405 405 405 405 405 405",
+    ),
+    "accounts/reset/<uidb64>/<token>/": Row(
+        get="200 200 200 200 200 200 200 200 200",
+        post="200 200 200 200 200 200 200 200 200",
+    ),
+    "accounts/reset/done/": Row(
+        get="200 200 200 200 200 200 200 200 200",
+        post="405 405 405 405 405 405 405 405 405",
+    ),
+    # POST {}: 403 without add_comparison, 400 (empty body) with it
+    "api/v1/comparisons/": Row(
+        get="401 200 200 200 200 200 200 401 200",
+        post="401 403 403 403 400 400 403 401 400",
+    ),
+    "api/v1/comparisons/<slug:code>/": Row(
+        get="401 200 200 200 200 404 200 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    "api/v1/comparisons/<slug:code>/measurands/": Row(
+        get="401 200 200 200 200 404 200 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    "api/v1/comparisons/<slug:code>/template.csv": Row(
+        get="401 200 200 200 200 404 200 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    # POST {}: 400 for participants, 403 for coordinators (not participants)
+    "api/v1/comparisons/<slug:code>/submissions/": Row(
+        get="401 200 200 200 200 404 200 401 200",
+        post="401 400 400 400 403 404 400 401 403",
+    ),
+    # POST JSON: 415 (multipart only) once the caller may submit
+    "api/v1/comparisons/<slug:code>/submissions/upload/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 415 415 415 403 404 415 401 403",
+    ),
+    # coordinators must say ?participant= (400); lab B has no version 2
+    "api/v1/comparisons/<slug:code>/submissions/<int:version>/": Row(
+        get="401 200 200 404 400 404 200 401 400",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    # participants see the comparison but lack the role: 403
+    "api/v1/comparisons/<slug:code>/analysis-runs/": Row(
+        get="401 403 403 403 200 404 403 401 200",
+        post="401 403 403 403 202 404 403 401 202",
+    ),
+    "api/v1/analysis-runs/<int:pk>/": Row(
+        get="401 404 404 404 200 404 404 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    # participants: 409 until published
+    "api/v1/comparisons/<slug:code>/scores/": Row(
+        get="401 409 409 409 200 404 409 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    # coordinators: 400 without ?factor=
+    "api/v1/comparisons/<slug:code>/compatibility/": Row(
+        get="401 409 409 409 400 404 409 401 400",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    # 409: no authoriser for the final reports yet
+    "api/v1/comparisons/<slug:code>/publish/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 403 403 403 409 404 403 401 409",
+    ),
+    "api/v1/comparisons/<slug:code>/transition/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 403 403 403 400 404 403 401 400",
+    ),
+    "api/v1/comparisons/<slug:code>/submissions/<str:participant>/<int:version>/decision/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 403 403 403 400 404 403 401 400",
+    ),
+    "api/v1/comparisons/<slug:code>/check-requests/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 403 403 403 400 404 403 401 400",
+    ),
+    "api/v1/comparisons/<slug:code>/devices/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 403 403 403 400 404 403 401 400",
+    ),
+    "api/v1/comparisons/<slug:code>/measurands/generate/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 403 403 403 400 404 403 401 400",
+    ),
+    "api/v1/comparisons/<slug:code>/participants/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 403 403 403 400 404 403 401 400",
+    ),
+    "api/v1/comparisons/<slug:code>/reports/": Row(
+        get="401 200 200 200 200 404 200 401 200",
+        post="401 403 403 403 400 404 403 401 400",
+    ),
+    # lab A's preliminary report: participants only after publication
+    "api/v1/reports/<str:token>/pdf": Row(
+        get="401 404 404 404 200 404 404 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    "api/v1/comparisons/<slug:code>/report-notes/": Row(
+        get="401 403 403 403 200 404 403 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+        other={"PUT": "401 403 403 403 200 404 403 401 200"},
+    ),
+    # raw records (issue 7 item 8): lab B takes part in comparison 1 too; POST {} is an
+    # invalid form (200) for participants
+    "lab/comparisons/<slug:code>/raw-data/": Row(
+        get="302 200 200 200 404 404 302 302 404",
+        post="302 200 200 200 404 404 302 302 404",
+    ),
+    "lab/comparisons/<slug:code>/raw-data/<int:pk>/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/raw-data/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    # POST JSON: 415 (multipart only) once the caller may upload; coordinators 403
+    "api/v1/comparisons/<slug:code>/raw-data/": Row(
+        get="401 200 200 200 200 404 200 401 200",
+        post="401 415 415 415 403 404 415 401 403",
+    ),
+    "api/v1/comparisons/<slug:code>/raw-data/<int:pk>/": Row(
+        get="401 404 404 404 404 404 404 401 404",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    "api/schema/": Row(
+        get="200 200 200 200 200 200 200 200 200",
+        post="405 405 405 405 405 405 405 405 405",
+    ),
+    "api/docs/": Row(
+        get="200 200 200 200 200 200 200 200 200",
+        post="405 405 405 405 405 405 405 405 405",
+    ),
+}
+
+#: Routes that may be absent (added by another change); their row is used when present.
+OPTIONAL = {"healthz", "healthz/"}
+
+
+#: After publication the participants read the results: lab B's pages then show every
+#: participant's results by code (as the summary report does, domain.md §9) but never a
+#: laboratory's name, and nothing of lab A reaches coordinator 2 or a signed-out caller.
+PUBLISHED: dict[str, Row] = {
+    "results/<slug:code>/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "results/<slug:code>/scores/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "results/<slug:code>/scores.<str:fmt>": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "results/<slug:code>/charts/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "results/<slug:code>/compatibility/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "reports/<slug:code>/": Row(get="302 200 200 200 200 404 302 302 200", post=""),
+    "api/v1/comparisons/<slug:code>/scores/": Row(
+        get="401 200 200 200 200 404 200 401 200", post=""
+    ),
+    "api/v1/comparisons/<slug:code>/compatibility/": Row(
+        get="401 200 200 200 200 404 200 401 200", post="", query="factor=axis"
+    ),
+    "api/v1/comparisons/<slug:code>/reports/": Row(
+        get="401 200 200 200 200 404 200 401 200", post=""
+    ),
+    "api/v1/reports/<str:token>/pdf": Row(get="401 200 200 404 200 404 200 401 200", post=""),
+}
