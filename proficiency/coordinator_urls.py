@@ -16,6 +16,7 @@ urlpatterns = [
     path(C, views.comparison_detail, name="comparison"),
     path(C + "edit/", views.comparison_edit, name="edit"),
     path(C + "status/", views.comparison_status, name="status"),
+    path(C + "report-notes/", views.report_notes, name="report_notes"),
     path(C + "devices/new/", views.device_add, name="device_add"),
     path(C + "points/generate/", views.points_generate, name="points_generate"),
     path(C + "points/<int:pk>/", views.point_edit, name="point_edit"),
@@ -32,5 +33,6 @@ urlpatterns = [
         name="submission",
     ),
     path(C + "review/results/<int:pk>/check/", views.result_check, name="check"),
+    path(C + "raw-data/", views.raw_review, name="raw_review"),
     path("", include("analysis.urls")),
 ]

@@ -31,6 +31,7 @@ from proficiency.forms import (
     InviteForm,
     PointGridForm,
     PointOverrideForm,
+    ReportNotesForm,
 )
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.services import (
@@ -159,6 +160,35 @@ def comparison_status(request: HttpRequest, code: str) -> HttpResponse:
                 request, f"{comparison.code} is now {comparison.get_status_display()}."
             )
     return redirect("coordinator:comparison", code=code)
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def report_notes(request: HttpRequest, code: str) -> HttpResponse:
+    """Comments, conclusions and the authoriser printed in the reports."""
+    from analysis.reports.services import report_notes_update
+
+    comparison = coordinated(request, code)
+    initial = {
+        "comments": comparison.report_comments,
+        "conclusions": comparison.report_conclusions,
+        "authorised_by_name": comparison.authorised_by_name,
+        "authorised_by_role": comparison.authorised_by_role,
+    }
+    form = ReportNotesForm(request.POST or None, initial=initial)
+    if request.method == "POST" and form.is_valid():
+        try:
+            report_notes_update(comparison=comparison, user=request.user, **form.cleaned_data)
+        except ApplicationError as exc:
+            form.add_error(None, exc.message)
+            for error in exc.errors:
+                field = error.get("field")
+                form.add_error(field if field in form.fields else None, error["message"])
+        else:
+            messages.success(request, "Report comments and authorisation saved.")
+            return redirect("coordinator:comparison", code=code)
+    context = {"form": form, "comparison": comparison}
+    return render(request, "coordinator/report_notes_form.html", context)
 
 
 # --- devices and measurement points -------------------------------------------------------
@@ -359,3 +389,25 @@ def result_check(request: HttpRequest, code: str, pk: int) -> HttpResponse:
     )
     return redirect("coordinator:submission", code=code, participant=s.participant.code,
                     version=s.version)  # fmt: skip
+
+
+# --- raw records (issue 7 item 8) ----------------------------------------------------------
+
+RAW_PER_PAGE = 10
+
+
+@login_required
+@require_GET
+def raw_review(request: HttpRequest, code: str) -> HttpResponse:
+    """Every participant's raw records (by code): reported vs recomputed, En, fs, fit."""
+    from django.core.paginator import Paginator
+
+    from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
+
+    comparison = coordinated(request, code)
+    page = Paginator(raw_records_of_comparison(comparison.pk), RAW_PER_PAGE).get_page(
+        request.GET.get("page")
+    )
+    cards = [(record, raw_record_figure(record)) for record in page]
+    context = {"comparison": comparison, "page": page, "cards": cards}
+    return render(request, "coordinator/raw_review.html", context)

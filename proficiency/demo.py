@@ -57,6 +57,9 @@ SYNTHETIC_LABS = [
     ("Iberian Motion Metrology", "PT"),
 ]
 OUTLIER_LAB = "Outlier Metrology Services"
+RAW_DATA_LAB = "Alpine Vibration Metrology"  # attaches a linear and a curvilinear record
+RAW_SECONDS = 8.0  # synthetic records generated at load time: small (~80 kB + 160 kB)
+RAW_BIAS = 1.002  # the record's truth differs from the reported value by +0.2 %
 
 # Table 1 of Chiominto et al. 2024 as shipped with the specification; the copy
 # here is used only when the shared folder is absent (e.g. an installed wheel).
@@ -185,6 +188,8 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
         participant = _lab(summary, comparison, name, country, f"lab{i:02d}", password)
         rows = synthetic_results(points, i, outlier=name == OUTLIER_LAB)
         _submit(participant, rows, Submission.Source.API if i % 2 else Submission.Source.WEB)
+        if name == RAW_DATA_LAB:
+            _raw_records(participant)
     return summary
 
 
@@ -205,6 +210,8 @@ def _comparison() -> Comparison:
             "assigned_value_method": AssignedValueMethod.NOMINAL,
             "sigma_pt_mode": SigmaPtMode.RELATIVE,
             "sigma_pt_value": 1.0,
+            "authorised_by_name": "Demo Quality Manager",
+            "authorised_by_role": "Quality manager of the PT provider (demonstration)",
         },
     )
     return comparison
@@ -304,3 +311,54 @@ def _submit(
         )
         for point, value, expanded in rows
     )
+
+
+def _raw_records(participant: Participant) -> None:
+    """A synthetic linear (int16 + sidecar) and curvilinear (int16 + encoder CSV) record
+    behind MEMS 1, X, 10 Hz, whose truth is the reported value × ``RAW_BIAS``; recomputed
+    by the Celery task after the loader's transaction commits."""
+    from analysis.core.signals import synthetic
+    from labs.raw_services import Upload, raw_record_upload
+
+    if participant.raw_records.exists():
+        return
+    submission = participant.submissions.get(version=1)
+    for bench, direction in (("linear", "vertical"), ("curvilinear", "tangential")):
+        result = submission.results.select_related("measurement_point__device").get(
+            measurement_point__device__name="MEMS 1", measurement_point__axis="X",
+            measurement_point__frequency_hz=10.0, measurement_point__bench=bench,
+            measurement_point__direction=direction,
+        )  # fmt: skip
+        p = result.measurement_point
+        truth = (result.value * RAW_BIAS, 419.0, 424.0)
+        imp = synthetic.Imperfections(noise_digits=1.5, quantise=True, seed=11)
+        point = {
+            "device": p.device.name,
+            "axis": p.axis,
+            "frequency_hz": p.frequency_hz,
+            "bench": p.bench,
+            "direction": p.direction,
+            "amplitude_m_s2": p.amplitude_m_s2,
+        }
+        if bench == "linear":
+            mems = synthetic.linear_record(truth, duration=RAW_SECONDS, imp=imp)
+            reference = None
+        else:
+            mems, enc = synthetic.curvilinear_records(truth, duration=RAW_SECONDS, imp=imp)
+            reference = Upload(_csv(enc), "demo-encoder.csv", {"fs_hz": enc.meta["fs_hz"]})
+        data = Upload(_int16(mems), f"demo-{bench}.bin", _plain(mems.meta))
+        raw_record_upload(participant=participant, point_fields=point, data=data,
+                          reference=reference)  # fmt: skip
+
+
+def _int16(record) -> bytes:  # type: ignore[no-untyped-def]
+    return np.ascontiguousarray(record.data.T).astype("<i2").tobytes()
+
+
+def _csv(record) -> bytes:  # type: ignore[no-untyped-def]
+    rows = [",".join(record.channels)] + [f"{v:.9g}" for v in record.data[0]]
+    return ("\n".join(rows) + "\n").encode()
+
+
+def _plain(meta: dict) -> dict:
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in meta.items()}
