@@ -82,14 +82,37 @@ def analysis_run_start(
                 f"Comparison {locked.code} is {locked.status}; close it before running the "
                 "analysis."
             )
+        params = _parameters(locked) | (parameters or {})
+        if active := _active_run(locked, params):  # two coordinators at once: one run
+            return active
         run = AnalysisRun.objects.create(
-            comparison=locked,
-            parameters=_parameters(locked) | (parameters or {}),
-            code_version=proficiency.__version__,
+            comparison=locked, parameters=params, code_version=proficiency.__version__,
             created_by=user,
-        )
-        transaction.on_commit(lambda: analysis_run_task.delay(run.pk))
+        )  # fmt: skip
+        transaction.on_commit(lambda: _enqueue(analysis_run_task, run.pk))
     return run
+
+
+def _active_run(comparison: Comparison, parameters: dict) -> AnalysisRun | None:
+    """A pending or running run of the same parameters that is not stale (the caller
+    holds the comparison's lock, so a concurrent start waits and then finds it)."""
+    active = AnalysisRun.objects.filter(
+        comparison=comparison, status__in=(R.PENDING, R.RUNNING),
+        created_at__gte=timezone.now() - STALE_AFTER,
+    ).order_by("-pk")  # fmt: skip
+    return next((run for run in active if run.parameters == parameters), None)
+
+
+def _enqueue(task: Any, run_id: int) -> None:
+    """Send the run's task; when the broker cannot be reached the run fails with a clear
+    error (never a run pending for ever) and the coordinator starts it again later."""
+    from kombu.exceptions import OperationalError
+
+    try:
+        task.delay(run_id)
+    except (OperationalError, OSError) as exc:
+        log.error("analysis run %s not queued, broker unreachable: %s", run_id, exc)
+        _fail(run_id, "The task queue (broker) could not be reached; start the run again.")
 
 
 def _parameters(c: Comparison) -> dict[str, Any]:

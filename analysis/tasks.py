@@ -45,3 +45,11 @@ def analysis_finish_task(run_id: int) -> str:
     from analysis.services import analysis_run_finish
 
     return analysis_run_finish(run_id=run_id)
+
+
+@shared_task(soft_time_limit=120, time_limit=180)
+def reports_pending_task() -> int:
+    """Celery beat: queue the reports of published comparisons that still miss some."""
+    from analysis.reports.services import reports_pending_enqueue
+
+    return reports_pending_enqueue()

@@ -7,10 +7,15 @@ The JSON shape is the one promised in formats.md §3:
 
 from __future__ import annotations
 
+import logging
 from typing import Any
 
+import psycopg
+from django.db import OperationalError as DjangoOperationalError
 from rest_framework.response import Response
 from rest_framework.views import exception_handler
+
+logger = logging.getLogger(__name__)
 
 
 class ApplicationError(Exception):
@@ -53,10 +58,21 @@ class NotVisible(ApplicationError):
     status_code = 404
 
 
+DATABASE_LOST = (
+    "The database connection failed while handling the request, so it was not completed; "
+    "operations are atomic, so nothing was stored half-way. Please try again."
+)
+
+
 def api_exception_handler(exc: Exception, context: dict[str, Any]) -> Response | None:
-    """DRF exception handler: ApplicationError -> JSON with detail and errors; else DRF's."""
+    """DRF exception handler: ApplicationError -> JSON with detail and errors; a lost
+    database connection (also one raised by psycopg directly, as COPY does) -> 503; else
+    DRF's."""
     if isinstance(exc, ApplicationError):
         return Response({"detail": exc.message, "errors": exc.errors}, status=exc.status_code)
+    if isinstance(exc, DjangoOperationalError | psycopg.OperationalError):
+        logger.error("database connection lost: %s", exc)
+        return Response({"detail": DATABASE_LOST, "errors": []}, status=503)
     response = exception_handler(exc, context)
     if response is None:
         return None

@@ -157,12 +157,22 @@ CELERY_TASK_SOFT_TIME_LIMIT = env.int("CELERY_TASK_SOFT_TIME_LIMIT", default=25 
 CELERY_WORKER_PREFETCH_MULTIPLIER = 1
 ANALYSIS_CHUNK_RESULTS = env.int("ANALYSIS_CHUNK_RESULTS", default=100_000)  # per chunk task
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
+# Redis: a task taken by a worker that dies (SIGKILL, power loss) is delivered again after
+# the visibility timeout (acks_late).  It must exceed the longest task (else a slow task
+# still running is delivered a second time) and the 1 h after which a redelivered run
+# may take over a "running" job (STALE_AFTER in analysis/labs services).
+_VISIBILITY = max(3600, CELERY_TASK_TIME_LIMIT) + 300
+CELERY_BROKER_TRANSPORT_OPTIONS = {
+    "visibility_timeout": env.int("CELERY_VISIBILITY_TIMEOUT", default=_VISIBILITY)
+}
 # Celery beat (exactly one per installation): daily housekeeping (proficiency.tasks).
 CELERY_BEAT_SCHEDULE = {
     "housekeeping": {
         "task": "proficiency.tasks.housekeeping",
         "schedule": crontab(hour=3, minute=17),
     },
+    # reports of a publication whose enqueue was lost (broker down) are sent again
+    "reports-pending": {"task": "analysis.tasks.reports_pending_task", "schedule": 300.0},
 }
 
 REST_FRAMEWORK = {

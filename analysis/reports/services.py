@@ -7,6 +7,7 @@ versions are kept with ``superseded = True``.
 from __future__ import annotations
 
 import hashlib
+import logging
 from collections.abc import Sequence
 
 from auditlog.context import set_actor
@@ -26,6 +27,7 @@ from proficiency.models import Comparison, ComparisonStatus
 REPORTABLE = (ComparisonStatus.ANALYSED, ComparisonStatus.PUBLISHED)
 MAX_TEXT = 20_000
 MAX_NAME = 120
+log = logging.getLogger(__name__)
 
 
 def _check_notes(
@@ -203,7 +205,37 @@ def reports_issue_all(*, comparison: Comparison) -> list[Report]:
 
 
 def reports_enqueue(*, comparison_id: int) -> None:
-    """After commit: one Celery task per report, as a group."""
+    """After commit: one Celery task per report, as a group.  When the broker cannot be
+    reached the publication stands and :func:`reports_pending_enqueue` (Celery beat)
+    sends the task once it is back: the published comparison is the outbox."""
+    transaction.on_commit(lambda: _send_reports_task(comparison_id))
+
+
+def _send_reports_task(comparison_id: int) -> bool:
+    from kombu.exceptions import OperationalError
+
     from analysis.reports.tasks import reports_issue_all_task
 
-    transaction.on_commit(lambda: reports_issue_all_task.delay(comparison_id))
+    try:
+        reports_issue_all_task.delay(comparison_id)
+    except (OperationalError, OSError) as exc:
+        log.error("reports of comparison %s not queued yet (broker: %s)", comparison_id, exc)
+        return False
+    return True
+
+
+def reports_missing(comparison: Comparison) -> int:
+    """How many reports (summary + one per participant) of the current run are not issued."""
+    run = current_run(comparison)
+    if run is None:
+        return 0
+    issued = Report.objects.filter(run=run, superseded=False).values("kind", "participant")
+    return 1 + comparison.participants.count() - issued.distinct().count()
+
+
+def reports_pending_enqueue() -> int:
+    """Beat task body: send the report task of every published comparison that still
+    misses reports (lost enqueue, broker down at publication); the number sent.
+    Issuing is idempotent, so a comparison whose reports are still rendering is safe."""
+    pending = Comparison.objects.filter(status=ComparisonStatus.PUBLISHED).order_by("pk")
+    return sum(_send_reports_task(c.pk) for c in pending if reports_missing(c) > 0)

@@ -68,3 +68,20 @@ def test_invite_by_unicode_digits_or_a_huge_id_is_unknown_not_500(world):
         assert response.status_code == 400, response.content
         assert "Unknown laboratories" in response.json()["detail"]
     assert Participant.objects.count() == before  # nothing invited half-way
+
+
+@pytest.mark.parametrize("kind", ["django", "psycopg"])
+def test_lost_database_connection_is_a_clear_503(kind):
+    """A COPY raises psycopg's OperationalError directly (no Django wrapping): it was a 500."""
+    import psycopg
+    from django.db import OperationalError
+
+    from proficiency.errors import api_exception_handler
+
+    exc = OperationalError("server closed the connection") if kind == "django" else (
+        psycopg.OperationalError("terminating connection due to administrator command")
+    )  # fmt: skip
+    response = api_exception_handler(exc, {})
+    assert response.status_code == 503
+    assert response.data["detail"].startswith("The database connection failed")
+    assert "nothing was stored half-way" in response.data["detail"]

@@ -1,0 +1,95 @@
+"""Two coordinators starting the analysis at once get one run and one result set; two
+uploads of the same laboratory at once give two consecutive versions, none lost."""
+
+import threading
+from collections.abc import Callable
+from io import StringIO
+
+import pytest
+from django.contrib.auth import get_user_model
+from django.core.management import call_command
+from django.db import connection
+from rest_framework.test import APIClient
+
+from analysis.models import AnalysisRun, Score
+from labs.models import Result
+from labs.selectors import current_submissions
+from labs.services import submission_from_file
+from proficiency.models import Comparison
+from tests.faults.conftest import wait_until
+from tests.labs.test_upload_files import csv_file, grid, records  # noqa: F401
+
+pytestmark = [pytest.mark.services, pytest.mark.django_db(transaction=True)]
+CODE = "IMU-2024-DEMO"
+
+
+def at_once(*calls: Callable[[], object]) -> list[object]:
+    """Run ``calls`` in threads released together (each thread has its own connection)."""
+    barrier = threading.Barrier(len(calls))
+    out: list[object] = [None] * len(calls)
+
+    def body(i: int) -> None:
+        try:
+            barrier.wait(10)
+            out[i] = calls[i]()
+        except BaseException as exc:  # reported by the test, not lost in the thread
+            out[i] = exc
+        finally:
+            connection.close()
+
+    threads = [threading.Thread(target=body, args=(i,)) for i in range(len(calls))]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    return out
+
+
+@pytest.mark.real_worker
+def test_two_coordinators_start_at_once_one_run_one_result_set(workers):
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    demo = Comparison.objects.get(code=CODE)
+    users = get_user_model().objects
+    second = users.create_user("coordinator2", password="x-password-2", is_staff=True)
+    demo.coordinators.add(second)
+    clients = []
+    for user in (users.get(username="coordinator"), second):
+        client = APIClient()
+        client.force_authenticate(user)
+        clients.append(client)
+    workers.start("w0")
+    url = f"/api/v1/comparisons/{CODE}/analysis-runs/"
+    a, b = at_once(*(lambda c=c: c.post(url) for c in clients))
+    assert (a.status_code, b.status_code) == (202, 202), (a.content, b.content)
+    assert a.json()["id"] == b.json()["id"]
+    run = AnalysisRun.objects.get()  # one run
+
+    def finished() -> bool:
+        run.refresh_from_db()
+        return run.status in ("succeeded", "failed")
+
+    wait_until(finished, "the run", workers, timeout=60)
+    assert run.status == "succeeded", run.error
+    accepted = Result.objects.filter(submission__in=current_submissions(demo)).count()
+    scores = Score.objects.filter(run=run)
+    assert scores.count() == accepted == scores.values("result_id").distinct().count() == 891
+    assert Score.objects.count() == 891  # one result set in the whole database
+
+
+def test_two_uploads_of_one_lab_at_once_give_two_versions(grid):  # noqa: F811
+    participant, user = grid
+    first, second = csv_file(records()), csv_file(records()[::-1])  # same content, other order
+
+    def upload(data: bytes) -> Callable[[], object]:
+        return lambda: submission_from_file(
+            participant=participant, data=data, filename="r.csv", user=user, submit=True
+        )
+
+    out = at_once(upload(first), upload(second))
+    assert not [o for o in out if isinstance(o, BaseException)], out
+    assert sorted(s.version for s in out) == [1, 2]
+    stored = participant.submissions.order_by("version")
+    assert list(stored.values_list("version", "status")) == [(1, "submitted"), (2, "submitted")]
+    for submission in stored:
+        assert submission.results.count() == 3600
+        assert submission.results.values("measurement_point").distinct().count() == 3600

@@ -1,0 +1,110 @@
+"""A worker SIGKILLed in the middle of an analysis run: the task it held is delivered
+again (Redis visibility timeout, ``acks_late``) to a new worker, and the run completes
+with exactly the numbers of an undisturbed run, without a duplicate row.
+
+Fanned out, the lost chunk is redone alone; a one-chunk run (the whole analysis in
+``analysis_run_task``) is taken over by the redelivered task once the run is stale."""
+
+import os
+import signal
+import time
+from io import StringIO
+
+import pytest
+from django.core.management import call_command
+from django.db.models import Count
+
+from analysis.models import AnalysisChunk, AnalysisRun, AssignedValue, Score
+from analysis.services import analysis_run_execute, analysis_run_start
+from proficiency.models import Comparison
+from tests.analysis.test_fanout import stored
+from tests.faults.conftest import wait_until
+
+pytestmark = [
+    pytest.mark.services,
+    pytest.mark.real_worker,
+    pytest.mark.django_db(transaction=True),
+]
+
+VISIBILITY = 4  # s: the test workers' visibility timeout (production: over 1 h, see settings)
+COMPARE = ["axis", "frequency", "device", "bench", "direction"]
+
+
+@pytest.fixture
+def undisturbed(settings):
+    """The demo analysed in one task, in this process: the reference numbers."""
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    demo = Comparison.objects.get(code="IMU-2024-DEMO")
+    settings.ANALYSIS_CHUNK_RESULTS = 10**9
+    run = AnalysisRun.objects.create(comparison=demo, parameters={"compare": COMPARE})
+    assert analysis_run_execute(run_id=run.pk) == "succeeded"
+    return run
+
+
+def kill_and_recover(workers, marker, env: dict[str, str], hang: str) -> AnalysisRun:
+    """Start a run on a worker that hangs at ``hang``, SIGKILL it there, start a new worker
+    once the message is visible again; the finished run."""
+    doomed = workers.start("w0", FAULT_HANG_CHUNK=hang, FAULT_MARKER=str(marker), **env)
+    demo = Comparison.objects.get(code="IMU-2024-DEMO")
+    run = analysis_run_start(comparison=demo, user=None)
+    wait_until(marker.exists, f"the worker to hang in {hang}", workers)
+    os.kill(doomed.pid, signal.SIGKILL)
+    assert doomed.wait(10) == -signal.SIGKILL
+    run.refresh_from_db()
+    assert run.status == "running"
+    assert (
+        not Score.objects.filter(run=run)
+        .exclude(result__measurement_point__lt=run_first_point_hung(run, hang))
+        .exists()
+    )  # the hung transaction was rolled back with the worker
+    time.sleep(max(0.0, float(marker.read_text()) + VISIBILITY + 0.5 - time.time()))
+    workers.start("w1", **env)
+
+    def finished() -> bool:
+        run.refresh_from_db()
+        return run.status in ("succeeded", "failed")
+
+    wait_until(finished, "the run to finish on the new worker", workers, timeout=90)
+    assert run.status == "succeeded", run.error
+    return run
+
+
+def run_first_point_hung(run: AnalysisRun, hang: str) -> int:
+    chunks = AnalysisChunk.objects.filter(run=run)
+    return (chunks.get(index=int(hang)) if hang != "run" else chunks.get()).first_point_id
+
+
+def assert_same_numbers_no_duplicates(run: AnalysisRun, undisturbed: AnalysisRun) -> None:
+    assert stored(run) == stored(undisturbed)
+    scores = Score.objects.filter(run=run)
+    assert scores.count() == 891 == scores.values("result_id").distinct().count()
+    assigned = AssignedValue.objects.filter(run=run)
+    dup = assigned.values("measurement_point_id").annotate(n=Count("id")).filter(n__gt=1)
+    assert assigned.count() == AssignedValue.objects.filter(run=undisturbed).count() > 0
+    assert not dup.exists()
+
+
+def test_sigkill_mid_chunk_is_redelivered_and_gives_identical_results(
+    workers, undisturbed, tmp_path
+):
+    env = {"ANALYSIS_CHUNK_RESULTS": "50", "CELERY_VISIBILITY_TIMEOUT": str(VISIBILITY)}
+    run = kill_and_recover(workers, tmp_path / "hung", env, hang="3")
+    assert (run.chunks_total, run.chunks_done, run.progress) == (18, 18, 100)
+    chunks = AnalysisChunk.objects.filter(run=run)
+    assert chunks.get(index=3).attempts == 2  # redone once, on the new worker
+    assert (
+        chunks.filter(done=True).count() == 18 == chunks.filter(done=True, attempts__lte=2).count()
+    )
+    assert_same_numbers_no_duplicates(run, undisturbed)
+
+
+def test_sigkill_mid_single_task_run_is_taken_over(workers, undisturbed, tmp_path):
+    env = {
+        "ANALYSIS_CHUNK_RESULTS": str(10**9),
+        "CELERY_VISIBILITY_TIMEOUT": str(VISIBILITY),
+        "FAULT_STALE_AFTER": str(VISIBILITY - 1),  # production: 1 h < the visibility timeout
+    }
+    run = kill_and_recover(workers, tmp_path / "hung", env, hang="run")
+    assert (run.chunks_total, run.chunks_done, run.progress) == (1, 1, 100)
+    assert AnalysisChunk.objects.get(run=run).attempts == 1  # re-planned by the new claim
+    assert_same_numbers_no_duplicates(run, undisturbed)

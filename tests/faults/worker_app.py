@@ -1,0 +1,55 @@
+"""The Celery app of the fault tests' workers: the project's app plus one test-only fault.
+
+With ``FAULT_HANG_CHUNK=i`` the worker hangs inside chunk ``i``'s transaction (``run``:
+inside the single task of a one-chunk run), after its
+assigned values and scores are written and before they commit, and writes the file
+``FAULT_MARKER`` so that the test knows when to SIGKILL it.  Nothing of this is in
+the project's code: the worker is started with ``-A tests.faults.worker_app``.
+"""
+
+import os
+import time
+from pathlib import Path
+
+from celery.signals import task_prerun, worker_ready
+
+from proficiency.celery import app
+
+__all__ = ["app"]
+# tasks sent by the worker itself (a chord, a report group) go to the test's queue too
+app.conf.task_default_queue = os.environ.get("FAULT_QUEUE", app.conf.task_default_queue)
+_current: dict[str, object] = {}
+
+
+@task_prerun.connect
+def _remember(task=None, args=None, **_: object) -> None:
+    _current["task"], _current["args"] = getattr(task, "name", ""), tuple(args or ())
+
+
+@worker_ready.connect
+def _install_hang(**_: object) -> None:
+    import datetime as dt
+
+    import analysis.services as services
+
+    if stale := os.environ.get("FAULT_STALE_AFTER"):  # seconds instead of the 1 h
+        services.STALE_AFTER = dt.timedelta(seconds=float(stale))
+    hang = os.environ.get("FAULT_HANG_CHUNK")  # a chunk index, or "run": the single task
+    if not hang:
+        return
+    original = services.write_scores
+
+    def hangs_here() -> bool:
+        if hang == "run":
+            return _current.get("task") == "analysis.tasks.analysis_run_task"
+        chunk = _current.get("task") == "analysis.tasks.analysis_chunk_task"
+        return chunk and int(_current["args"][1]) == int(hang)  # type: ignore[index]
+
+    def write_scores(*args: object, **kwargs: object) -> object:
+        out = original(*args, **kwargs)
+        if hangs_here():
+            Path(os.environ["FAULT_MARKER"]).write_text(str(time.time()))
+            time.sleep(600)  # killed by the test long before
+        return out
+
+    services.write_scores = write_scores
