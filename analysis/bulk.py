@@ -78,8 +78,8 @@ def copy_rows(table: str, columns: Sequence[Column]) -> int:
     """Write the rows with one binary COPY (PostgreSQL); returns the number of rows."""
     names = ", ".join(c.name for c in columns)
     n = int(columns[0].values.size)
-    with connection.cursor() as cur, cur.copy(f"COPY {table} ({names}) FROM STDIN "
-                                              "(FORMAT binary)") as copy:  # fmt: skip
+    with connection.cursor() as cur, cur.cursor.copy(f"COPY {table} ({names}) FROM STDIN "
+                                                     "(FORMAT binary)") as copy:  # fmt: skip
         copy.write(HEADER)
         for block in _row_blocks(columns, n):
             copy.write(block)
