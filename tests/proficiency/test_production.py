@@ -122,6 +122,30 @@ def test_production_settings_are_strict():
     }  # fmt: skip
 
 
+@pytest.mark.parametrize(
+    ("email_url", "backend"),
+    [
+        (None, "django.core.mail.backends.console.EmailBackend"),
+        ("smtp+tls://u:p@mail.example.org:587", "django.core.mail.backends.smtp.EmailBackend"),
+    ],
+)
+def test_email_goes_to_the_console_unless_a_server_is_configured(email_url, backend):
+    """Publishing sends e-mails: without a mail server configured they must not fail (the
+    quick start's publication raised ConnectionRefusedError from the SMTP default)."""
+    env = {k: v for k, v in os.environ.items() if k != "EMAIL_URL"}
+    if email_url:
+        env["EMAIL_URL"] = email_url
+    show = "from django.conf import settings as s; print(s.EMAIL_BACKEND, s.EMAIL_HOST)"
+    result = subprocess.run(
+        [sys.executable, "manage.py", "shell", "-c", show],
+        cwd=ROOT, env=env, capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    shown = result.stdout.strip().splitlines()[-1].split()
+    assert shown[0] == backend
+    if email_url:
+        assert shown[1] == "mail.example.org"
+
+
 def test_check_deploy_is_clean_in_production_mode():
     result = subprocess.run(
         [sys.executable, "manage.py", "check", "--deploy", "--fail-level", "WARNING"],
