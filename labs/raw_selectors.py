@@ -24,8 +24,8 @@ def raw_records_of_comparison(comparison_id: int) -> QuerySet[RawRecord]:
 
 def _with_joins(qs: QuerySet[RawRecord]) -> QuerySet[RawRecord]:
     return qs.select_related(
-        "participant", "measurement_point__device", "data_file", "reference_file",
-        "recomputation",
+        "participant", "submission", "measurement_point__device", "data_file",
+        "reference_file", "recomputation",
     ).order_by("participant__code", "-created_at", "-pk")  # fmt: skip
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 from django.conf import settings
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
+from django.core.paginator import Page, Paginator
 from django.db.models import OuterRef, QuerySet, Subquery
 from django.http import Http404, HttpRequest, HttpResponse, QueryDict
 from django.shortcuts import redirect, render
@@ -268,9 +269,18 @@ def submission_history(request: HttpRequest, code: str) -> HttpResponse:
     context = {
         "participant": participant,
         "comparison": participant.comparison,
-        "submissions": participant_submissions(participant),
+        "submissions": (page := _page(request, participant_submissions(participant))),
+        "page_obj": page,
     }
     return render(request, "labs/history.html", context)
+
+
+#: rows per page of the history and raw-record lists (they grow with every upload)
+LIST_PER_PAGE = 25
+
+
+def _page(request: HttpRequest, items: QuerySet) -> Page:  # type: ignore[type-arg]
+    return Paginator(items, LIST_PER_PAGE).get_page(request.GET.get("page"))
 
 
 @login_required
@@ -358,7 +368,8 @@ def _raw_page(
         "participant": participant,
         "comparison": participant.comparison,
         "form": form,
-        "records": raw_records_of(participant),
+        "records": (page := _page(request, raw_records_of(participant))),
+        "page_obj": page,
         "max_upload": human_limit(),
         "error": error,
     }

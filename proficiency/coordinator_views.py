@@ -289,14 +289,22 @@ def participant_reference(request: HttpRequest, code: str, participant: str) -> 
 # --- review -------------------------------------------------------------------------------
 
 
+#: participants per page of the review list
+REVIEW_PER_PAGE = 50
+
+
 @login_required
 @require_GET
 def review(request: HttpRequest, code: str) -> HttpResponse:
+    from django.core.paginator import Paginator
+
     comparison = coordinated(request, code)
     participants = _latest_status(comparison.participants.select_related("laboratory"))
+    page = Paginator(participants.order_by("code"), REVIEW_PER_PAGE)
     context = {
         "comparison": comparison,
-        "participants": participants.order_by("code"),
+        "participants": (page_obj := page.get_page(request.GET.get("page"))),
+        "page_obj": page_obj,
         "n_points": comparison.measurement_points.count(),
     }
     return render(request, "coordinator/review.html", context)

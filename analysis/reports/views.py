@@ -6,6 +6,7 @@ from typing import cast
 
 from django.contrib.auth.base_user import AbstractBaseUser
 from django.contrib.auth.decorators import login_required
+from django.core.paginator import Paginator
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import render
 from django.urls import path
@@ -13,6 +14,9 @@ from django.urls import path
 from analysis.reports.access import reports_visible
 from labs.api.permissions import Caller, comparison_access
 from proficiency.errors import NotVisible
+
+#: every version of every report is kept, so the list grows with each issue
+REPORTS_PER_PAGE = 50
 
 
 @login_required
@@ -23,7 +27,12 @@ def reports_page(request: HttpRequest, code: str) -> HttpResponse:
         raise Http404(f"No comparison {code!r} is visible to you.") from None
     context = {
         "comparison": access.comparison,
-        "reports": reports_visible(access),
+        "reports": (
+            page := Paginator(reports_visible(access), REPORTS_PER_PAGE).get_page(
+                request.GET.get("page")
+            )
+        ),
+        "page_obj": page,
         "is_coordinator": access.is_coordinator,
     }
     return render(request, "reports/list.html", context)
