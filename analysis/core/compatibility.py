@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from analysis.core.aggregate import aggregate, check_coverage_factor
+from analysis.core.aggregate import Aggregate, aggregate, check_coverage_factor
 from analysis.core.groups import BoolArray, CoreInputError, FloatArray, Groups, IntArray, as_finite
 
 #: Above this many cells (groups × width²) the batch form works block by block
@@ -272,29 +272,46 @@ def compatibility_matrices(
     n_lvl = lvl_names.size
     present, idx = np.unique(by_code * n_lvl + lvl_code, return_inverse=True)
     agg = aggregate(value, u, Groups.from_index(idx.reshape(-1), present.size), k)
+    return _matrices_of_levels(
+        factor, agg, present, lvl_names, (by_cols, by_shape, by_names), limit=limit
+    )
+
+
+def _matrices_of_levels(
+    factor: str,
+    agg: Aggregate,
+    present: IntArray,
+    lvl_names: np.ndarray,
+    by: tuple[tuple[str, ...], tuple[int, ...], list[np.ndarray]],
+    *,
+    limit: float,
+) -> list[CompatibilityMatrix]:
+    """One matrix per by-group from the aggregated levels: ``present`` holds the code
+    by_code * n_levels + level_code of every aggregated level (sorted), ``by`` the
+    by-columns with their shape and names as :func:`_encode_many` gives them."""
+    by_cols, by_shape, by_names = by
+    n_lvl = lvl_names.size
     by_present, by_idx = np.unique(present // n_lvl, return_inverse=True)
     by_groups = Groups.from_index(by_idx.reshape(-1), by_present.size)
     batch = pairwise_en_grouped(agg.mean, agg.expanded_uncertainty, by_groups, limit=limit)
     parts = np.unravel_index(by_present, by_shape)
     level_names = lvl_names[present % n_lvl]
-    out = []
-    for g, m in enumerate(batch.members):
-        out.append(
-            CompatibilityMatrix(
-                factor=_factor_name(factor),
-                group={c: by_names[j][parts[j][g]].item() for j, c in enumerate(by_cols)},
-                levels=level_names[m].tolist(),
-                value=agg.mean[m],
-                standard_uncertainty=agg.standard_uncertainty[m],
-                expanded_uncertainty=agg.expanded_uncertainty[m],
-                en=batch.blocks[g],
-                incompatible_pairs=int(batch.incompatible_pairs[g]),
-                n=agg.n[m],
-                coverage_factor=agg.coverage_factor,
-                limit=float(limit),
-            )
+    return [
+        CompatibilityMatrix(
+            factor=_factor_name(factor),
+            group={c: by_names[j][parts[j][g]].item() for j, c in enumerate(by_cols)},
+            levels=level_names[m].tolist(),
+            value=agg.mean[m],
+            standard_uncertainty=agg.standard_uncertainty[m],
+            expanded_uncertainty=agg.expanded_uncertainty[m],
+            en=batch.blocks[g],
+            incompatible_pairs=int(batch.incompatible_pairs[g]),
+            n=agg.n[m],
+            coverage_factor=agg.coverage_factor,
+            limit=float(limit),
         )
-    return out
+        for g, m in enumerate(batch.members)
+    ]
 
 
 @dataclass(frozen=True, eq=False)

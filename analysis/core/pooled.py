@@ -29,8 +29,7 @@ from analysis.core.compatibility import (
     _encode,
     _encode_many,
     _factor_column,
-    _factor_name,
-    pairwise_en_grouped,
+    _matrices_of_levels,
 )
 from analysis.core.groups import CoreInputError, FloatArray, Groups, IntArray, as_finite
 
@@ -112,28 +111,6 @@ def compatibility_matrices_pooled(
     n_lvl = lvl_names.size
     present, idx = np.unique(by_code * n_lvl + lvl_code, return_inverse=True)
     agg = aggregate_moments(pool(parts, Groups.from_index(idx.reshape(-1), present.size)), k)
-    by_present, by_idx = np.unique(present // n_lvl, return_inverse=True)
-    batch = pairwise_en_grouped(
-        agg.mean,
-        agg.expanded_uncertainty,
-        Groups.from_index(by_idx.reshape(-1), by_present.size),
-        limit=limit,
+    return _matrices_of_levels(
+        factor, agg, present, lvl_names, (by_cols, by_shape, by_names), limit=limit
     )
-    coords = np.unravel_index(by_present, by_shape)
-    level_names = lvl_names[present % n_lvl]
-    return [
-        CompatibilityMatrix(
-            factor=_factor_name(factor),
-            group={c: by_names[j][coords[j][g]].item() for j, c in enumerate(by_cols)},
-            levels=level_names[m].tolist(),
-            value=agg.mean[m],
-            standard_uncertainty=agg.standard_uncertainty[m],
-            expanded_uncertainty=agg.expanded_uncertainty[m],
-            en=batch.blocks[g],
-            incompatible_pairs=int(batch.incompatible_pairs[g]),
-            n=agg.n[m],
-            coverage_factor=agg.coverage_factor,
-            limit=float(limit),
-        )
-        for g, m in enumerate(batch.members)
-    ]
