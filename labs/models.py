@@ -6,7 +6,7 @@ from django.conf import settings
 from django.db import models
 from django.db.models import F, Q
 from django.db.models.functions import NullIf
-from rest_framework_api_key.models import AbstractAPIKey
+from rest_framework_api_key.models import AbstractAPIKey, APIKeyManager
 
 from proficiency.models import Comparison, MeasurementPoint, finite_positive
 
@@ -168,12 +168,20 @@ class Result(models.Model):
         return f"{self.measurement_point}: {self.value:g} ± {self.expanded_uncertainty:g}"
 
 
+class LabAPIKeyManager(APIKeyManager):
+    def get_usable_keys(self) -> models.QuerySet[LabAPIKey]:
+        """The authentication lookup fetches the key's laboratory in the same query: every
+        API request reads it (scope, throttling), so this saves one query per request."""
+        return super().get_usable_keys().select_related("laboratory")
+
+
 class LabAPIKey(AbstractAPIKey):
     """A hashed, revocable API key that belongs to one laboratory (formats.md §3).
 
     Only the prefix and the hash are stored; the key itself is shown once, when it
     is created (``labs.services.api_key_create``)."""
 
+    objects = LabAPIKeyManager()
     laboratory = models.ForeignKey(Laboratory, on_delete=models.CASCADE, related_name="api_keys")
     created_by = models.ForeignKey(
         settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL

@@ -31,6 +31,11 @@ if not DEBUG and SECRET_KEY == DEV_SECRET_KEY:
 ALLOWED_HOSTS = env.list("ALLOWED_HOSTS", default=["127.0.0.1", "localhost", "[::1]", "testserver"])
 CSRF_TRUSTED_ORIGINS = env.list("CSRF_TRUSTED_ORIGINS", default=[])
 
+# Cache: DRF throttle counters and django-axes live here. In production set CACHE_URL to a
+# shared cache (redis://127.0.0.1:6379/2): with the per-process default every gunicorn worker
+# would count a key's requests separately, allowing several times the rate limit.
+CACHES = {"default": env.cache_url("CACHE_URL", default="locmemcache://")}
+
 # E-mail (publication notices): printed on the console unless EMAIL_URL names a server,
 # e.g. smtp+tls://user:password@mail.example.org:587, so the quick start needs none.
 vars().update(env.email_url("EMAIL_URL", default="consolemail://"))

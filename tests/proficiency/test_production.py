@@ -146,6 +146,19 @@ def test_email_goes_to_the_console_unless_a_server_is_configured(email_url, back
         assert shown[1] == "mail.example.org"
 
 
+def test_rate_limit_counters_use_the_shared_cache_when_configured():
+    """Without CACHE_URL each process counts throttled requests alone (found by the load
+    test: 5 gunicorn workers allowed 5x the rate); with it, one Redis cache counts them."""
+    env = {k: v for k, v in os.environ.items() if k != "CACHE_URL"}
+    show = "from django.conf import settings as s; c = s.CACHES['default']; print(c['BACKEND'])"
+    run = lambda e: subprocess.run(  # noqa: E731
+        [sys.executable, "manage.py", "shell", "-c", show],
+        cwd=ROOT, env=e, capture_output=True, text=True, check=True,
+    ).stdout.strip().splitlines()[-1]  # fmt: skip
+    assert run(env) == "django.core.cache.backends.locmem.LocMemCache"
+    assert run(env | {"CACHE_URL": "redis://127.0.0.1:6379/2"}).endswith("RedisCache")
+
+
 def test_check_deploy_is_clean_in_production_mode():
     result = subprocess.run(
         [sys.executable, "manage.py", "check", "--deploy", "--fail-level", "WARNING"],
