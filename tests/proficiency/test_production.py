@@ -273,10 +273,16 @@ def test_serve_reads_the_environment_file(tmp_path, monkeypatch):
 
 def test_serve_runs_web_worker_beat_and_stops_all_when_one_dies(monkeypatch, tmp_path, capsys):
     serve = serve_module()
-    sleeper = [sys.executable, "-c", "import time; print('up', flush=True); time.sleep(60)"]
-    dying = [sys.executable, "-c", "import sys; print('bye', flush=True); sys.exit(3)"]
+    up = tmp_path / "web-up"
+    web = [sys.executable, "-c", "import sys, time; print('up', flush=True); "
+           "open(sys.argv[1], 'a').close(); time.sleep(60)", str(up)]  # fmt: skip
+    sleeper = [sys.executable, "-c", "import time; time.sleep(60)"]
+    # beat dies only once web has printed its line (no race on a loaded machine)
+    dying = [sys.executable, "-c", "import os, sys, time\n"
+             "while not os.path.exists(sys.argv[1]): time.sleep(0.05)\n"
+             "print('bye', flush=True); sys.exit(3)", str(up)]  # fmt: skip
     monkeypatch.setattr(
-        serve, "commands", lambda state: {"web": sleeper, "worker": sleeper, "beat": dying}
+        serve, "commands", lambda state: {"web": web, "worker": sleeper, "beat": dying}
     )
     procs = serve.start(dict(os.environ), str(tmp_path))
     exited = serve.pump(procs, [False])
