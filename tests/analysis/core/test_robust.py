@@ -49,8 +49,12 @@ def test_algorithm_a_matches_pt13528(data: list[list[float]]) -> None:
             assert _close(av.value[g], ref.location, spread, 1e-6)
             continue
         assert av.diagnostics["converged"][g]
-        assert _close(av.value[g], ref.location, ref.scale)
-        assert _close(s_star[g], ref.scale, ref.scale)
+        # The core stops at the exact fixed point; where the iteration converges slowly
+        # pt13528's default stop (step < 1e-10 s*) is still ~1e-8 s* away from it, so the
+        # limit is compared with pt13528 run to tol = 1e-15.
+        limit = oracle.algorithm_a(d, tol=1e-15)
+        assert _close(av.value[g], limit.location, limit.scale)
+        assert _close(s_star[g], limit.scale, limit.scale)
         p = len(d)
         assert av.standard_uncertainty[g] == pytest.approx(1.25 * s_star[g] / math.sqrt(p))
 
