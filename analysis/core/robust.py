@@ -44,6 +44,9 @@ _COLLAPSE = 1e-9  # s* below this fraction of its start value is reported as 0
 # In the scaled units of the iteration (largest deviation = 1) an s* this small lives in
 # subnormal arithmetic, where the update can stall without converging: a collapse too.
 _SUBNORMAL = np.finfo(np.float64).tiny * 2.0**53
+# A window's sums are recomputed directly when its centred sum of squares falls below
+# this fraction of the squares that passed through it (see _Window).
+_RESUM = 1e-3
 _PARALLEL_SORT_MIN = 200_000  # below this, starting a thread costs more than it saves
 
 
@@ -244,9 +247,17 @@ class _Window:
     the values that enter or leave the window are added or subtracted.  The limits
     settle within a few iterations, so the whole iteration touches a small fraction of
     the results instead of building full prefix sums (four cumulative sums over every
-    result, which cost more than the sort).  Far outliers stay outside the window and
-    never enter a sum (no cancellation); the values that move in and out lie at the
-    clipping limits, of the size of the window itself.
+    result, which cost more than the sort).
+
+    Cancellation: a value added and later removed leaves a rounding residue of order
+    eps * v**2 in the sum of squares.  When the window shrinks onto results much closer
+    together than the values that passed through it (a collapsing iteration, or a
+    cluster of near-identical results), that residue would act as a spurious variance
+    and give the iteration a false fixed point.  ``mag`` bounds the residue (sum of the
+    squares of every value added or removed since the window was last summed
+    directly); where the window's own centred sum of squares falls below
+    ``_RESUM * mag`` its sums are recomputed directly (:meth:`resum`), so the centred
+    sum always carries a relative error below ~1e-12.
     """
 
     rows: FloatArray
@@ -254,34 +265,57 @@ class _Window:
     j: IntArray
     s1: FloatArray
     s2: FloatArray
+    mag: FloatArray
 
     @classmethod
     def start(cls, rows: FloatArray, sel: IntArray, i: IntArray, j: IntArray) -> _Window:
-        """Windows [i, j) of the selected rows summed directly; the others start empty.
+        """Windows [i, j) of the selected rows summed directly; the others start empty."""
+        g = rows.shape[0]
+        win = cls(
+            rows,
+            np.zeros(g, np.intp),
+            np.zeros(g, np.intp),
+            np.zeros(g),
+            np.zeros(g),
+            np.zeros(g),
+        )
+        win.i[sel], win.j[sel] = i, j
+        win.resum(sel)
+        return win
+
+    def resum(self, sel: IntArray) -> None:
+        """Sum the selected rows' current windows directly.
 
         Each window is reduced on its own (``np.add.reduceat``), so a group's sums, and
         hence its Algorithm A result, do not depend on the other groups of the call."""
-        g, width = rows.shape
-        win = cls(rows, np.zeros(g, np.intp), np.zeros(g, np.intp), np.zeros(g), np.zeros(g))
-        win.i[sel], win.j[sel] = i, j
-        flat = rows.reshape(-1)
+        if not sel.size:
+            return
+        width = self.rows.shape[1]
+        i, j = self.i[sel], self.j[sel]
+        flat = self.rows.reshape(-1)
         bounds = np.column_stack((sel * width + i, sel * width + j)).reshape(-1)
         if bounds[-1] == flat.size:  # reduceat's last segment runs to the end anyway
             bounds = bounds[:-1]
         bounds = np.minimum(bounds, flat.size - 1)  # only an empty window can be clipped
         nonempty = j > i
-        win.s1[sel] = np.where(nonempty, np.add.reduceat(flat, bounds)[::2], 0.0)
-        win.s2[sel] = np.where(nonempty, np.add.reduceat(flat * flat, bounds)[::2], 0.0)
-        return win
+        self.s1[sel] = np.where(nonempty, np.add.reduceat(flat, bounds)[::2], 0.0)
+        self.s2[sel] = np.where(nonempty, np.add.reduceat(flat * flat, bounds)[::2], 0.0)
+        self.mag[sel] = self.s2[sel]
 
     def move(self, sel: IntArray, i: IntArray, j: IntArray) -> tuple[FloatArray, FloatArray]:
-        """Move the selected rows' windows to [i, j) and return their sums."""
+        """Move the selected rows' windows to [i, j) and return their sums (summed
+        afresh where the residue of the updates could matter, see the class)."""
         # sum[i', j') = sum[i, j) - sum[i, i') + sum[j, j'), with sum[a, b) = -sum[b, a)
         d1, d2 = _segment_sums(self.rows, sel, self.j[sel], j)
         e1, e2 = _segment_sums(self.rows, sel, self.i[sel], i)
         self.s1[sel] += d1 - e1
         self.s2[sel] += d2 - e2
+        self.mag[sel] += np.abs(d2) + np.abs(e2)
         self.i[sel], self.j[sel] = i, j
+        k = j - i
+        s1, s2 = self.s1[sel], self.s2[sel]
+        centred = s2 - s1 * s1 / np.maximum(k, 1)
+        self.resum(sel[(k > 0) & (centred < _RESUM * self.mag[sel])])
         return self.s1[sel], self.s2[sel]
 
 
@@ -342,12 +376,16 @@ def _a_step(
     else:
         stable = (win.i[sel] == i) & (win.j[sel] == j)
         s1, s2 = win.move(sel, i, j)
-    mean = (k_lo * lo + s1 + k_hi * hi) / n
-    ss = k_lo * (lo - mean) ** 2 + k_hi * (hi - mean) ** 2 + (s2 - 2 * mean * s1 + k_in * mean**2)
-    new_s = ALG_A_FACTOR * np.sqrt(np.maximum(ss, 0.0) / (n - 1))
     first = a.rows[sel, np.minimum(i, n - 1)]
     last = a.rows[sel, np.maximum(j - 1, 0)]
     flat = (k_in > 0) & (first == last)
+    # identical results inside: their sums are known exactly, and the squared deviations
+    # are taken from the value itself (no cancellation in s2 - 2 mean s1 + k mean^2)
+    s1 = np.where(flat, k_in * first, s1)
+    mean = (k_lo * lo + s1 + k_hi * hi) / n
+    inside = np.where(flat, k_in * (first - mean) ** 2, s2 - 2 * mean * s1 + k_in * mean**2)
+    ss = k_lo * (lo - mean) ** 2 + k_hi * (hi - mean) ** 2 + inside
+    new_s = ALG_A_FACTOR * np.sqrt(np.maximum(ss, 0.0) / (n - 1))
     exact = np.zeros(sel.size, bool)
     try_ = np.flatnonzero(stable & ~flat & (k_in > 1) & solve)
     if try_.size:
@@ -467,6 +505,10 @@ def algorithm_a(
       deviation (C.3.1 NOTE 2); if the iteration then collapses (s* -> 0, detected as in
       pt13528), x* = median and s* = 0 are returned.
     * all results identical, or a group of one result: x* = median, s* = 0, 0 iterations.
+    * s* below 2**-969 (~2e-292) of the largest deviation from the median (e.g. results
+      0, 2e-311 and 6e5): the iteration would run in subnormal arithmetic, where it can
+      stall and its few significant bits mean nothing; reported as a collapse, x* =
+      median and s* = 0 (pt13528 iterates on and returns an s* of order 1e-311).
     A group of two results gives x* = mean and s* = 1.134 |x1 - x2| / sqrt(2) (no
     clipping happens).  Diagnostics: ``s_star``, ``iterations``, ``converged``,
     ``degenerate``, ``n``; a group that hits ``max_iter`` has ``converged`` False.
