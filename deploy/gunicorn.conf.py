@@ -2,7 +2,8 @@
 
 Everything can be overridden from the environment: ``GUNICORN_BIND`` (default
 ``127.0.0.1:8000``; a reverse proxy terminates TLS in front), ``WEB_CONCURRENCY``
-(workers, default 2 × cores + 1, at least 2), ``GUNICORN_TIMEOUT`` (seconds).
+(workers, default 2 × cores + 1, at least 2), ``GUNICORN_TIMEOUT`` (seconds),
+``GUNICORN_MAX_REQUESTS`` (requests a worker serves before it is replaced, default 20000).
 Logs go to standard output as JSON lines (``LOG_FORMAT=plain`` for text), with
 the access log as key=value pairs inside ``message``.
 """
@@ -16,8 +17,11 @@ workers = max(2, int(os.environ.get("WEB_CONCURRENCY", multiprocessing.cpu_count
 worker_class = "sync"
 timeout = int(os.environ.get("GUNICORN_TIMEOUT", "60"))
 graceful_timeout = 20
-max_requests = 2000  # recycle workers now and then (memory held by numpy/matplotlib)
-max_requests_jitter = 200
+# Recycle workers now and then (memory held by numpy/matplotlib). Not too often: a new
+# worker spends ≈ 2.4 s of CPU importing Django and the views before its first answer
+# (bench/README.md, "Load test"); every 2,000 requests that was ≈ 1 ms per request.
+max_requests = int(os.environ.get("GUNICORN_MAX_REQUESTS", "20000"))
+max_requests_jitter = max_requests // 10
 # X-Forwarded-Proto is trusted from these addresses only (the reverse proxy).
 forwarded_allow_ips = os.environ.get("FORWARDED_ALLOW_IPS", "127.0.0.1,::1")
 # Uploads are limited in Django (before parsing); this bounds the request line and headers.

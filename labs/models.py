@@ -9,6 +9,7 @@ from django.db.models.functions import NullIf
 from rest_framework_api_key.models import AbstractAPIKey, APIKeyManager
 
 from proficiency.models import Comparison, MeasurementPoint, finite_positive
+from proficiency.rows import JoinedQuery, ModelColumns
 
 
 class Laboratory(models.Model):
@@ -169,10 +170,33 @@ class Result(models.Model):
 
 
 class LabAPIKeyManager(APIKeyManager):
+    _usable_by_prefix: JoinedQuery | None = None
+
     def get_usable_keys(self) -> models.QuerySet[LabAPIKey]:
         """The authentication lookup fetches the key's laboratory in the same query: every
         API request reads it (scope, throttling), so this saves one query per request."""
         return super().get_usable_keys().select_related("laboratory")
+
+    def get_from_key(self, key: str) -> LabAPIKey:
+        """The library's lookup (a usable, i.e. not revoked, key with this prefix whose hash
+        matches; ``DoesNotExist`` otherwise), read from the database at every call as
+        before, with its laboratory, in one SQL statement written once
+        (:mod:`proficiency.rows`) instead of one compiled by the ORM per request."""
+        prefix = key.partition(".")[0]
+        if LabAPIKeyManager._usable_by_prefix is None:
+            LabAPIKeyManager._usable_by_prefix = JoinedQuery(
+                [ModelColumns(LabAPIKey, "k"), ModelColumns(Laboratory, "l")],
+                'FROM "labs_labapikey" "k" INNER JOIN "labs_laboratory" "l" '
+                'ON "l"."id" = "k"."laboratory_id" WHERE "k"."prefix" = %s AND "k"."revoked" = %s',
+            )
+        rows = LabAPIKeyManager._usable_by_prefix.fetch([prefix, False], using=self.db)
+        if not rows:
+            raise LabAPIKey.DoesNotExist("LabAPIKey matching query does not exist.")
+        api_key, laboratory = rows[0]
+        api_key.laboratory = laboratory  # type: ignore[attr-defined]
+        if not api_key.is_valid(key):  # type: ignore[attr-defined]
+            raise LabAPIKey.DoesNotExist("Key is not valid.")
+        return api_key  # type: ignore[return-value]
 
 
 class LabAPIKey(AbstractAPIKey):

@@ -84,6 +84,10 @@ SUBMISSION_TRANSITIONS: dict[str, frozenset[str]] = {
 def submission_transition(*, submission: Submission, to: str, message: str = "") -> Submission:
     """Move a submission to ``to`` if its life cycle allows it, under a row lock."""
     locked = Submission.objects.select_for_update().get(pk=submission.pk)
+    if Submission.participant.is_cached(submission):
+        # the same participant row (a version never changes participant): the audit log's
+        # text of the version (str) then needs no query for the participant and comparison
+        locked.participant = submission.participant
     if to not in SUBMISSION_TRANSITIONS[locked.status]:
         allowed = ", ".join(sorted(SUBMISSION_TRANSITIONS[locked.status])) or "none (decided)"
         raise InvalidTransition(
@@ -181,10 +185,12 @@ def submission_save(
         draft.results.all().delete()
         draft.source, draft.submitted_by = source, user
         draft.save(update_fields=["source", "submitted_by"])
-    _results(draft, rows, context, point_ids)
-    if submit:
-        return submission_transition(submission=draft, to=St.SUBMITTED)
-    return draft
+    n_results = _results(draft, rows, context, point_ids)
+    saved = submission_transition(submission=draft, to=St.SUBMITTED) if submit else draft
+    # the version's result count, as the history annotates it (the API's n_results): the
+    # rows just stored are all its results (a draft's earlier ones were deleted above)
+    saved.n_results = n_results  # type: ignore[attr-defined]
+    return saved
 
 
 def _results(

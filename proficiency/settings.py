@@ -35,6 +35,9 @@ CSRF_TRUSTED_ORIGINS = env.list("CSRF_TRUSTED_ORIGINS", default=[])
 # shared cache (redis://127.0.0.1:6379/2): with the per-process default every gunicorn worker
 # would count a key's requests separately, allowing several times the rate limit.
 CACHES = {"default": env.cache_url("CACHE_URL", default="locmemcache://")}
+if CACHES["default"]["BACKEND"] == "django.core.cache.backends.redis.RedisCache":
+    # the same backend, reusing its redis.Redis client (proficiency/cache.py)
+    CACHES["default"]["BACKEND"] = "proficiency.cache.RedisCache"
 
 # E-mail (publication notices): printed on the console unless EMAIL_URL names a server,
 # e.g. smtp+tls://user:password@mail.example.org:587, so the quick start needs none.
@@ -192,8 +195,8 @@ REST_FRAMEWORK = {
     ],
     "DEFAULT_PERMISSION_CLASSES": ["rest_framework.permissions.IsAuthenticated"],
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
-    "DEFAULT_FILTER_BACKENDS": ["django_filters.rest_framework.DjangoFilterBackend"],
-    "DEFAULT_PAGINATION_CLASS": "rest_framework.pagination.PageNumberPagination",
+    "DEFAULT_FILTER_BACKENDS": ["proficiency.filters.FilterBackend"],  # django-filter's
+    "DEFAULT_PAGINATION_CLASS": "proficiency.pagination.PageNumberPagination",  # DRF's
     "PAGE_SIZE": 100,
     "DEFAULT_THROTTLE_RATES": {
         "api_key": env.str("THROTTLE_API_KEY", default="600/min"),

@@ -13,6 +13,7 @@ from rest_framework import serializers
 
 from labs.models import Result, Submission
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
+from proficiency.rendering import ValuesRendering
 
 # ---------------------------------------------------------------- errors
 
@@ -124,6 +125,26 @@ class ComparisonDetailSerializer(serializers.ModelSerializer):
         access = self.context["access"]
         roles = ["participant"] if access.participant is not None else []
         return [*roles, "coordinator"] if access.is_coordinator else roles
+
+
+DEVICE_ROWS = ValuesRendering(DeviceSerializer)
+COMPARISON_DETAIL = ValuesRendering(
+    ComparisonDetailSerializer,
+    computed=("devices", "n_measurement_points", "participant_code", "roles"),
+)
+
+
+def comparison_detail_data(comparison: Comparison, access: Any) -> dict[str, Any]:
+    """``ComparisonDetailSerializer(comparison, context={"access": access}).data``, the
+    columns read without building the serializer's fields (the hot polled endpoint)."""
+    methods = ComparisonDetailSerializer(context={"access": access})
+    return COMPARISON_DETAIL.instance(
+        comparison,
+        devices=DEVICE_ROWS.data(comparison.devices.all()),
+        n_measurement_points=methods.get_n_measurement_points(comparison),
+        participant_code=methods.get_participant_code(comparison),
+        roles=methods.get_roles(comparison),
+    )
 
 
 class MeasurementPointSerializer(serializers.ModelSerializer):
@@ -255,4 +276,20 @@ class SubmissionDetailSerializer(SubmissionSerializer):
 
     @extend_schema_field(ResultSerializer(many=True))
     def get_results(self, obj: Submission) -> list[dict[str, Any]]:
-        return ResultSerializer(self.context["results"], many=True).data
+        # ResultSerializer's output, from values_list rows (81+ rows per version)
+        return RESULT_ROWS.data(self.context["results"])
+
+
+RESULT_ROWS = ValuesRendering(ResultSerializer)
+SUBMISSION_DETAIL = ValuesRendering(SubmissionDetailSerializer, computed=("n_results", "results"))
+
+
+def submission_detail_data(submission: Submission, results: Any) -> dict[str, Any]:
+    """``SubmissionDetailSerializer(submission, context={"results": results}).data``, the
+    columns read without building the serializer's fields."""
+    methods = SubmissionDetailSerializer(context={"results": results})
+    return SUBMISSION_DETAIL.instance(
+        submission,
+        n_results=methods.get_n_results(submission),
+        results=methods.get_results(submission),
+    )

@@ -43,6 +43,7 @@ from labs.selectors import results_template
 from labs.services import submission_from_file, submission_from_records
 from proficiency.errors import RequestTooLarge, ValidationFailed
 from proficiency.models import ComparisonStatus, MeasurementPoint
+from proficiency.rendering import ValuesRendering
 from proficiency.serializers import NewComparisonSerializer
 
 #: multipart framing (boundaries, part headers, the submit field) on top of the file itself
@@ -100,15 +101,30 @@ class ApiView(APIView):
         return comparison_access(caller_of(self.request), code)
 
 
+class ValuesListView(generics.ListAPIView):
+    """A list whose page is rendered from ``values_list`` rows (:mod:`proficiency.rendering`):
+    the same JSON as ``serializer_class``, without building model instances or fields."""
+
+    rendering: ValuesRendering
+
+    def list(self, request: Request, *args: Any, **kwargs: Any) -> Response:
+        rows = self.rendering.rows(self.filter_queryset(self.get_queryset()))
+        page = self.paginate_queryset(rows)
+        if page is not None:
+            return self.get_paginated_response(self.rendering.render(page))
+        return Response(self.rendering.render(rows))
+
+
 class ComparisonFilter(django_filters.FilterSet):
     status = django_filters.ChoiceFilter(choices=ComparisonStatus.choices)
 
 
 @extend_schema(tags=["comparisons"], responses={200: s.ComparisonSerializer, **AUTH_ERRORS})
-class ComparisonList(ApiView, generics.ListAPIView):
+class ComparisonList(ApiView, ValuesListView):
     """Comparisons visible to you: your laboratory's, the ones you coordinate (all for admins)."""
 
     serializer_class = s.ComparisonSerializer
+    rendering = ValuesRendering(s.ComparisonSerializer)
     filterset_class = ComparisonFilter
 
     def get_queryset(self) -> QuerySet[Any]:
@@ -132,9 +148,7 @@ class ComparisonDetail(ApiView):
 
     def get(self, request: Request, code: str) -> Response:
         access = self.access(code)
-        return Response(
-            s.ComparisonDetailSerializer(access.comparison, context={"access": access}).data
-        )
+        return Response(s.comparison_detail_data(access.comparison, access))
 
 
 @extend_schema(
@@ -142,10 +156,11 @@ class ComparisonDetail(ApiView):
     parameters=[CODE],
     responses={200: s.MeasurementPointSerializer, **AUTH_ERRORS, **NOT_VISIBLE},
 )
-class MeasurandList(ApiView, generics.ListAPIView):
+class MeasurandList(ApiView, ValuesListView):
     """The comparison's measurement points (one result is expected for each)."""
 
     serializer_class = s.MeasurementPointSerializer
+    rendering = ValuesRendering(s.MeasurementPointSerializer)
     filter_backends: list[type] = []
 
     def get_queryset(self) -> QuerySet[Any]:
@@ -213,10 +228,11 @@ class SubmissionFilter(django_filters.FilterSet):
     )
 
 
-class SubmissionCollection(ApiView, generics.ListAPIView):
+class SubmissionCollection(ApiView, ValuesListView):
     """Your laboratory's versions (coordinators: every participant's, by code)."""
 
     serializer_class = s.SubmissionSerializer
+    rendering = ValuesRendering(s.SubmissionSerializer, annotations={"n_results": "n_results"})
     filterset_class = SubmissionFilter
     parser_classes = [JSONParser]
 
@@ -320,5 +336,4 @@ class SubmissionDetail(ApiView):
             version=version,
             participant_code=request.query_params.get("participant"),
         )
-        context = {"results": submission_results(submission)}
-        return Response(s.SubmissionDetailSerializer(submission, context=context).data)
+        return Response(s.submission_detail_data(submission, submission_results(submission)))
