@@ -1,10 +1,11 @@
 """Bulk I/O of the analysis hot path: columns of numbers in and out, no model instances.
 
-On PostgreSQL both directions use binary ``COPY``: a row of fixed-width fields
-(no NULL, no text) is one record of a numpy structured dtype, so a whole query
-result is read with one ``np.frombuffer`` and a table of rows is written from
-one structured array per *row shape* (the NULL pattern and text lengths of the
-row), with no Python loop over rows.  Other databases (SQLite in development)
+On PostgreSQL a query's columns are read as one row of binary blobs (one per
+column, ``string_agg`` of the values' binary form), each read with one
+``np.frombuffer``; rows are written with binary ``COPY``: a row of fixed-width
+fields is one record of a numpy structured dtype, and a table of rows is written
+from one structured array per *row shape* (the NULL pattern and text lengths of
+the row), with no Python loop over rows.  Other databases (SQLite in development)
 read with ``values_list`` and write with ``bulk_create`` in large batches.
 
 Binary COPY format: https://www.postgresql.org/docs/current/sql-copy.html
@@ -19,6 +20,7 @@ from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from django.core.exceptions import EmptyResultSet
 from django.db import connection
 from django.db.models import QuerySet
 
@@ -26,6 +28,7 @@ SIGNATURE = b"PGCOPY\n\xff\r\n\x00"
 HEADER = SIGNATURE + struct.pack(">ii", 0, 0)
 TRAILER = struct.pack(">h", -1)
 _NET = {"i8": ">i8", "f8": ">f8", "bool": "u1"}
+_SEND = {"i8": "int8send", "f8": "float8send"}  # a value's binary form, as bytea
 
 
 def is_postgresql() -> bool:
@@ -35,33 +38,32 @@ def is_postgresql() -> bool:
 def read_columns(qs: QuerySet, kinds: Sequence[str]) -> list[np.ndarray]:
     """The ``values_list`` columns of ``qs`` as numpy arrays (``kinds``: "i8" | "f8").
 
-    Every column must be NOT NULL.  PostgreSQL: one binary COPY of the query.
+    Every column must be NOT NULL.  PostgreSQL: one query whose answer is one row, each
+    column the concatenation of the column's values in network byte order
+    (``string_agg(int8send(...))``), read with ``np.frombuffer``.  All aggregates of one
+    query consume the rows in the same order, so the columns stay aligned.  A binary
+    ``COPY ... TO STDOUT`` sends one message per row, and reading 100,000 messages cost
+    the worker ~0.1 s of CPU per 100,000 rows; this costs ~0.01 s.
     """
     if not is_postgresql():
         rows = list(qs)
         cols = list(zip(*rows, strict=True)) if rows else [()] * len(kinds)
         return [np.array(c, dtype=k) for c, k in zip(cols, kinds, strict=True)]
-    sql, params = qs.query.sql_with_params()
-    statement = f"COPY ({sql}) TO STDOUT (FORMAT binary)"
-    # psycopg's own cursor: Django's debug wrapper's copy() takes no parameters
-    with connection.cursor() as cur, cur.cursor.copy(statement, params) as copy:
-        data = b"".join(bytes(block) for block in copy)
-    return _parse_fixed(data, kinds)
-
-
-def _parse_fixed(data: bytes, kinds: Sequence[str]) -> list[np.ndarray]:
-    if not data.startswith(SIGNATURE):
-        raise ValueError("not a PostgreSQL binary COPY stream")
-    start = 19 + struct.unpack_from(">i", data, 15)[0]
-    fields: list[tuple[str, str]] = [("n", ">i2")]
-    for i, kind in enumerate(kinds):
-        fields += [(f"len{i}", ">i4"), (f"v{i}", _NET[kind])]
-    body = np.frombuffer(data, dtype=np.dtype(fields), offset=start,
-                         count=(len(data) - start - 2) // np.dtype(fields).itemsize)  # fmt: skip
-    wrong = [np.any(body[f"len{i}"] != np.dtype(k).itemsize) for i, k in enumerate(kinds)]
-    if np.any(body["n"] != len(kinds)) or any(wrong):
-        raise ValueError("COPY rows are not fixed-width: a NULL or an unexpected column type")
-    return [body[f"v{i}"].astype(k) for i, k in enumerate(kinds)]
+    try:
+        sql, params = qs.query.sql_with_params()
+    except EmptyResultSet:  # e.g. ``pk__in=[]``: no query to run
+        return [np.zeros(0, dtype=k) for k in kinds]
+    names = ", ".join(f"c{i}" for i in range(len(kinds)))
+    aggs = ", ".join(f"string_agg({_SEND[k]}(t.c{i}), ''::bytea)" for i, k in enumerate(kinds))
+    with connection.cursor() as cur:
+        cur.execute(f"SELECT count(*), {aggs} FROM ({sql}) AS t({names})", params)
+        n, *blobs = cur.fetchone()
+    out = [
+        np.frombuffer(b or b"", dtype=_NET[k]).astype(k) for b, k in zip(blobs, kinds, strict=True)
+    ]
+    if any(c.size != n for c in out):  # string_agg skips NULLs
+        raise ValueError("a column read has NULLs: its values would not line up with the others")
+    return out
 
 
 @dataclass(frozen=True)

@@ -8,8 +8,10 @@ from __future__ import annotations
 import secrets
 
 from django.conf import settings
-from django.db import models
+from django.db import connections, models
 from django.db.models import Q
+from django.db.models.signals import pre_delete
+from django.dispatch import receiver
 
 from labs.models import Participant, Result
 from proficiency.models import Comparison, MeasurementPoint
@@ -53,6 +55,27 @@ class AnalysisRun(models.Model):
 
     def __str__(self) -> str:
         return f"Run {self.pk} of {self.comparison.code} ({self.status})"
+
+
+@receiver(pre_delete, sender=AnalysisRun, dispatch_uid="analysis.lock_run_before_delete")
+def lock_run_before_delete(sender: type[AnalysisRun], instance: AnalysisRun, using: str,
+                           **kwargs: object) -> None:  # fmt: skip
+    """Lock the run row FOR UPDATE before Django's collector deletes its scores.
+
+    ``Score.run`` has no database foreign key; a chunk's transaction holds the run row
+    FOR KEY SHARE while it writes scores.  Without this lock a deletion could delete the
+    scores (its snapshot not seeing a chunk's uncommitted rows), then wait for the chunk's
+    commit and delete the run, leaving that chunk's scores orphaned.  With it, the
+    deletion waits for chunks in flight and then sees and deletes their rows, and a chunk
+    that starts later waits for the deletion and finds no run (it fails, writes nothing).
+    The collector sends ``pre_delete`` inside its transaction before any delete.
+    """
+    connection = connections[using]
+    if connection.vendor == "postgresql":  # SQLite serialises write transactions
+        with connection.cursor() as cur:
+            cur.execute(
+                f"SELECT 1 FROM {sender._meta.db_table} WHERE id = %s FOR UPDATE", [instance.pk]
+            )
 
 
 class AnalysisChunk(models.Model):
@@ -112,13 +135,17 @@ class Score(models.Model):
     """Scores of one result in one run (ISO 13528 §9); flags as labels."""
 
     # Bulk-written (a million rows per run): the (run, result) unique index serves lookups
-    # by run, so no second index on run; and no database-level foreign key on result,
-    # whose per-row check at commit locks every result row (FOR KEY SHARE) and took more
-    # time than the COPY itself.  Django still cascades deletes of results to their scores,
-    # and the final step of a run checks that every score's result exists.
+    # by run, so no second index on run; and no database-level foreign keys, whose per-row
+    # checks at commit (a FOR KEY SHARE lookup of the referenced row per score) took more
+    # time than the COPY itself.  Django still cascades deletes of runs and results to
+    # their scores.  Instead, a chunk locks its run row once (FOR KEY SHARE) before writing
+    # and deleting a run locks it FOR UPDATE first (``lock_run_before_delete``), so a run
+    # cannot be deleted under a chunk; and each chunk checks that every scored result
+    # still exists (``analysis.services._save_chunk``).
     run = models.ForeignKey(
-        AnalysisRun, on_delete=models.CASCADE, related_name="scores", db_index=False
-    )
+        AnalysisRun, on_delete=models.CASCADE, related_name="scores", db_index=False,
+        db_constraint=False,
+    )  # fmt: skip
     result = models.ForeignKey(
         Result, on_delete=models.CASCADE, related_name="scores", db_constraint=False
     )

@@ -63,8 +63,14 @@ def score_columns(run_id: int, loaded: LoadedRound, a: Analysis) -> list[Column]
 
 
 def write_scores(run_id: int, loaded: LoadedRound, a: Analysis) -> int:
-    """Insert the scores of ``loaded`` (inside the caller's transaction)."""
-    cols = score_columns(run_id, loaded, a)
+    """Insert the scores of ``loaded`` (inside the caller's transaction).
+
+    Rows go in ascending result id: the (run, result) and result indexes then take them
+    in one ordered sweep instead of one sweep per point (rows are loaded point by point),
+    which halves PostgreSQL's index maintenance.
+    """
+    order = np.argsort(loaded.result_id, kind="stable")
+    cols = [_take(c, order) for c in score_columns(run_id, loaded, a)]
     if is_postgresql():
         return copy_rows(Score._meta.db_table, cols)
     values = [_python_values(c) for c in cols]
@@ -74,6 +80,11 @@ def write_scores(run_id: int, loaded: LoadedRound, a: Analysis) -> int:
         batch_size=BATCH,
     )
     return len(values[0])
+
+
+def _take(c: Column, rows: np.ndarray) -> Column:
+    null = None if c.null is None else c.null[rows]
+    return Column(c.name, c.kind, c.values[rows], null)
 
 
 def _python_values(c: Column) -> list[Any]:
