@@ -1,9 +1,8 @@
 """Every endpoint × persona gives the exact status; nothing of lab A ever reaches lab B."""
 
 import pytest
-from django.core.cache import cache
 
-from tests.labs.api import A_VALUES, LAB_A_NAME, PERSONAS, as_csv, build_world, rows
+from tests.labs.api import A_VALUES, LAB_A_NAME, PERSONAS, as_csv, rows
 
 pytestmark = pytest.mark.django_db
 
@@ -38,16 +37,6 @@ CASES = [
     for persona in PERSONAS
     for i, name in enumerate(ENDPOINTS)
 ]
-
-
-@pytest.fixture(autouse=True)
-def _fresh_throttle_buckets():
-    cache.clear()
-
-
-@pytest.fixture
-def world():
-    return build_world()
 
 
 def call(client, endpoint: str):

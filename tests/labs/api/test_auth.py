@@ -4,27 +4,15 @@ import datetime as dt
 import io
 
 import pytest
-from django.core.cache import cache
 from django.core.management import CommandError, call_command
 from django.utils import timezone
 from rest_framework.test import APIClient
 
 from labs.models import LabAPIKey
-from tests.labs.api import build_world
 
 pytestmark = pytest.mark.django_db
 
 LIST = "/api/v1/comparisons/"
-
-
-@pytest.fixture(autouse=True)
-def _fresh_throttle_buckets():
-    cache.clear()
-
-
-@pytest.fixture
-def world():
-    return build_world()
 
 
 def with_header(value: str) -> APIClient:

@@ -8,7 +8,6 @@ from __future__ import annotations
 import datetime as dt
 
 import pytest
-from django.core.cache import cache
 from django.core.exceptions import ImproperlyConfigured
 from django.db import connection
 from django.test.utils import CaptureQueriesContext
@@ -35,11 +34,6 @@ from tests.labs.api import build_world, rows
 pytestmark = pytest.mark.django_db
 
 render = JSONRenderer().render
-
-
-@pytest.fixture(autouse=True)
-def _fresh_throttle_buckets():
-    cache.clear()
 
 
 @pytest.fixture

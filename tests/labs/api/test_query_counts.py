@@ -2,24 +2,12 @@
 answer in a fixed, small number of queries, whatever the number of rows behind them."""
 
 import pytest
-from django.core.cache import cache
 from django.db import connection
 from django.test.utils import CaptureQueriesContext
 
 from labs.models import LabAPIKey
-from tests.labs.api import build_world
 
 pytestmark = pytest.mark.django_db
-
-
-@pytest.fixture(autouse=True)
-def _fresh_throttle_buckets():
-    cache.clear()
-
-
-@pytest.fixture
-def world():
-    return build_world()
 
 
 def test_key_lookup_brings_its_laboratory_in_the_same_query(world):

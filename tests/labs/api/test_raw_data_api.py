@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import pytest
-from django.core.cache import cache
 from django.core.files.uploadedfile import SimpleUploadedFile
 from rest_framework.test import APIClient
 
@@ -31,11 +30,6 @@ URL = f"/api/v1/comparisons/{CODE}/raw-data/"
 REPORTED, REPORTED_U = 420.5, 8.4
 LINEAR_POINT = {"device": "MEMS 1", "axis": "X", "frequency_hz": "10", "bench": "linear"}
 CURV_POINT = {**LINEAR_POINT, "bench": "curvilinear", "direction": "tangential"}
-
-
-@pytest.fixture(autouse=True)
-def _fresh_throttle_buckets():
-    cache.clear()
 
 
 class World:

@@ -4,30 +4,19 @@ import datetime as dt
 import io
 
 import pytest
-from django.core.cache import cache
 from django.core.files.uploadedfile import SimpleUploadedFile
 from django.utils import timezone
 
 from labs.importers import parse_table
 from labs.models import Result, Submission
 from labs.selectors import table_context
-from tests.labs.api import as_csv, build_world, rows
+from tests.labs.api import as_csv, rows
 
 pytestmark = pytest.mark.django_db
 
 C = "/api/v1/comparisons/IMU-A-01"
 SUBMIT = f"{C}/submissions/"
 UPLOAD = f"{C}/submissions/upload/"
-
-
-@pytest.fixture(autouse=True)
-def _fresh_throttle_buckets():
-    cache.clear()
-
-
-@pytest.fixture
-def world():
-    return build_world()
 
 
 @pytest.fixture
