@@ -133,3 +133,30 @@ def _block(columns: Sequence[Column], rows: np.ndarray) -> np.ndarray:
         else:
             out[f"len{i}"] = 0
     return out
+
+
+# The analysis and the report batches read a round through the participant → submission →
+# result (→ score) indexes.  Right after a bulk load (a million results COPYed, a million
+# scores) a table may have no statistics yet (autovacuum off, or not run yet) and the
+# planner then hash-joins a sequential scan of every result of the round, per chunk or batch.
+PLANNER_TABLES = ("labs_participant", "labs_submission", "labs_result", "analysis_score")
+
+
+def planner_stats_refresh() -> list[str]:
+    """ANALYZE (PostgreSQL) those of ``PLANNER_TABLES`` changed by more than autovacuum's
+    default threshold (50 rows + 10 %) since their last analysis; the tables analysed.
+    ANALYZE samples a table (a second for a million rows) and blocks neither reads nor
+    writes; when nothing changed this is one query on the statistics view."""
+    if connection.vendor != "postgresql":
+        return []
+    with connection.cursor() as cur:
+        cur.execute(
+            "SELECT s.relname FROM pg_stat_user_tables s JOIN pg_class c ON c.oid = s.relid "
+            "WHERE s.relname = ANY(%s) "
+            "AND s.n_mod_since_analyze > 50 + 0.1 * GREATEST(c.reltuples, 0)",
+            [list(PLANNER_TABLES)],
+        )
+        stale = sorted(name for (name,) in cur.fetchall())
+        for name in stale:
+            cur.execute(f"ANALYZE {connection.ops.quote_name(name)}")
+    return stale

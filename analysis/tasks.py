@@ -11,7 +11,11 @@ alone; a chunk already stored is a no-op.
 from celery import shared_task
 from django.conf import settings
 
-from analysis.reports.tasks import report_issue_task, reports_issue_all_task  # noqa: F401
+from analysis.reports.tasks import (  # noqa: F401
+    report_issue_batch_task,
+    report_issue_task,
+    reports_issue_all_task,
+)
 
 _TASK = {
     "acks_late": True,

@@ -5,6 +5,12 @@ Participants appear by code only; laboratory names are never read here.
 
 from __future__ import annotations
 
+from collections import OrderedDict
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 from django.conf import settings
 from django.contrib.auth.models import AbstractBaseUser
 
@@ -17,10 +23,14 @@ from analysis.reports.data import (
     MatrixData,
     PointInfo,
     ReportData,
+    ResultListing,
     ResultRow,
+    RoundStats,
     ScoreRow,
     StabilityRow,
 )
+from analysis.reports.rounds import round_stats, stats_of_rows
+from analysis.reports.sections import FULL_TABLE_ROWS
 from analysis.reports.stability import stability_rows
 from labs.models import Participant
 from proficiency import protocols
@@ -72,6 +82,245 @@ def report_number(comparison: Comparison, participant: Participant | None, editi
     return f"{comparison.code}-{participant.code if participant else 'S'}-v{edition}"
 
 
+@dataclass(frozen=True, eq=False)
+class RunContext:
+    """What every report of a run shares, read once per run per process (:func:`run_context`):
+    points, participants, assigned values, matrices, stability and the round's figures.
+    ``rows`` holds every (result, score) row of a small round (≤ ``FULL_TABLE_ROWS``,
+    listed whole in each participant report); a large round keeps its figures only and a
+    participant report reads its own rows (:func:`participant_rows`)."""
+
+    key: tuple[object, ...]
+    points: tuple[PointInfo, ...]
+    index: dict[int, int]
+    participants: tuple[str, ...]
+    reference_code: str | None
+    assigned: tuple[AssignedRow, ...]
+    use_z: dict[int, bool]
+    matrices: tuple[MatrixData, ...]
+    stability_rows: tuple[StabilityRow, ...]
+    stats: RoundStats
+    rows: tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]] | None
+
+
+_CONTEXTS: OrderedDict[tuple[object, ...], RunContext] = OrderedDict()
+_CONTEXTS_KEPT = 2  # a large round's figures hold its values: keep a few runs only
+_STREAM_ROWS = 50_000
+
+
+def run_context(run: AnalysisRun) -> RunContext:
+    """The shared data of ``run``, cached per process: a finished run's outputs never
+    change.  The key also holds what may change after the run (the participants, the En
+    limit): a change builds the context again."""
+    comparison = run.comparison
+    n_parts = comparison.participants.count()
+    key = (run.pk, run.comparison_id, run.finished_at, comparison.en_limit, n_parts)
+    found = _CONTEXTS.get(key)
+    if found is not None:
+        _CONTEXTS.move_to_end(key)
+        return found
+    context = _build_context(run, key)
+    _CONTEXTS[key] = context
+    while len(_CONTEXTS) > _CONTEXTS_KEPT:
+        _CONTEXTS.popitem(last=False)
+    return context
+
+
+def clear_run_contexts() -> None:
+    _CONTEXTS.clear()
+
+
+def _build_context(run: AnalysisRun, key: tuple[object, ...]) -> RunContext:
+    comparison = run.comparison
+    points, index = _points(comparison)
+    parts = list(comparison.participants.order_by("code").values_list("pk", "code", "is_reference"))
+    assigned = _assigned(run, index)
+    use_z = _use_z(run)
+    stable = stability_rows(comparison, index, assigned)
+    n_scores = Score.objects.filter(run=run).count()
+    rows = None
+    if n_scores <= FULL_TABLE_ROWS:
+        rows = _results_and_scores(run, index, use_z)
+        stats = stats_of_rows(points, rows[0], rows[1], comparison.en_limit)
+    else:
+        stats = _stream_stats(run, points, index, parts, n_scores, comparison.en_limit)
+    return RunContext(
+        key=key,
+        points=tuple(points),
+        index=index,
+        participants=tuple(code for _, code, _ in parts),
+        reference_code=next((code for _, code, ref in parts if ref), None),
+        assigned=assigned,
+        use_z=use_z,
+        matrices=_matrices(run),
+        stability_rows=stable,
+        stats=stats,
+        rows=rows,
+    )
+
+
+def _stream_stats(
+    run: AnalysisRun,
+    points: list[PointInfo],
+    index: dict[int, int],
+    parts: list[tuple[int, str, bool]],
+    n_scores: int,
+    en_limit: float,
+) -> RoundStats:
+    """The round's figures from every score of the run, read in chunks into numpy columns
+    (memory: a few arrays of ``n_scores`` numbers, no row objects)."""
+    cols = np.empty((5, n_scores))
+    rows = (
+        Score.objects.filter(run=run)
+        .order_by()
+        .values_list(
+            "result__measurement_point_id",
+            "result__submission__participant_id",
+            "result__value",
+            "result__expanded_uncertainty",
+            "en",
+        )
+    )
+    filled = 0
+    chunk: list[tuple[int, int, float, float, float]] = []
+    for row in rows.iterator(chunk_size=_STREAM_ROWS):
+        chunk.append(row)
+        if len(chunk) == _STREAM_ROWS:
+            filled = _fill(cols, filled, chunk)
+    filled = _fill(cols, filled, chunk)
+    cols = cols[:, :filled]  # a score deleted since the count
+    point_ids = np.array(sorted(index))
+    point = np.array([index[p] for p in point_ids.tolist()])[
+        np.searchsorted(point_ids, cols[0].astype(np.int64))
+    ]
+    part_ids = np.array([pk for pk, _, _ in parts])
+    order = np.argsort(part_ids)
+    lab = order[np.searchsorted(part_ids[order], cols[1].astype(np.int64))]
+    codes = [code for _, code, _ in parts]
+    return round_stats(
+        points, codes, (point, lab, cols[2], cols[3]), (point, lab, cols[4]), en_limit
+    )
+
+
+def _fill(cols: np.ndarray, filled: int, chunk: list[tuple[int, int, float, float, float]]) -> int:
+    if chunk:
+        end = min(filled + len(chunk), cols.shape[1])
+        cols[:, filled:end] = np.array(chunk[: end - filled], dtype=float).T
+        filled = end
+        chunk.clear()
+    return filled
+
+
+_LISTING_FIELDS = (
+    "result__measurement_point_id",
+    "result__submission__participant_id",
+    "result__value",
+    "result__expanded_uncertainty",
+    "result__coverage_factor",
+    "d",
+    "en",
+    "zeta",
+    "z",
+    "z_prime",
+    "flag",
+)
+
+
+def result_listing(run: AnalysisRun, context: RunContext) -> ResultListing:
+    """Every scored result of ``run`` as columns (the summary of a large round), read in
+    chunks: no row objects are kept, whatever the number of results."""
+    n = Score.objects.filter(run=run).count()
+    ids = dict(run.comparison.participants.values_list("pk", "code"))
+    labs = sorted(ids.values())
+    rank = {code: i for i, code in enumerate(labs)}
+    lab_of = {pk: rank[code] for pk, code in ids.items()}
+    use_z = context.use_z
+    flags: dict[str, int] = {}
+    ints = np.empty((3, n), dtype=np.int32)  # point, lab, flag
+    floats = np.empty((7, n))  # value, U, k, d, en, zeta, z
+    filled = 0
+    chunk: list[tuple[Any, ...]] = []
+
+    def flush() -> None:
+        nonlocal filled
+        end = min(filled + len(chunk), n)
+        take = chunk[: end - filled]
+        ints[0, filled:end] = [context.index[r[0]] for r in take]
+        ints[1, filled:end] = [lab_of[r[1]] for r in take]
+        ints[2, filled:end] = [flags.setdefault(r[10], len(flags)) for r in take]
+        floats[:, filled:end] = np.array(
+            [
+                (*r[2:8], np.nan if (z := r[8] if use_z.get(r[0], False) else r[9]) is None else z)
+                for r in take
+            ],
+            dtype=float,
+        ).T
+        filled = end
+        chunk.clear()
+
+    rows = Score.objects.filter(run=run).order_by().values_list(*_LISTING_FIELDS)
+    for row in rows.iterator(chunk_size=_STREAM_ROWS):
+        chunk.append(row)
+        if len(chunk) == _STREAM_ROWS:
+            flush()
+    flush()
+    ints, floats = ints[:, :filled], floats[:, :filled]  # a score deleted since the count
+    names = sorted({p.device for p in context.points})
+    device_rank = np.array([names.index(p.device) for p in context.points], dtype=np.int32)
+    device = device_rank[ints[0]] if filled else np.empty(0, dtype=np.int32)
+    order = np.lexsort((ints[1], ints[0], device))
+    ints, floats, device = ints[:, order], floats[:, order], device[order]
+    bounds = np.searchsorted(device, np.arange(len(names) + 1))
+    devices = tuple(
+        (name, int(bounds[i]), int(bounds[i + 1]))
+        for i, name in enumerate(names)
+        if bounds[i + 1] > bounds[i]
+    )
+    value, big_u, k, d, en, zeta, z = floats
+    return ResultListing(
+        labs=tuple(labs),
+        flags=tuple(flags),
+        devices=devices,
+        point=ints[0],
+        lab=ints[1],
+        value=value,
+        expanded_uncertainty=big_u,
+        coverage_factor=k,
+        d=d,
+        en=en,
+        zeta=zeta,
+        z=z,
+        flag=ints[2].astype(np.int8 if len(flags) < 128 else np.int32),
+    )
+
+
+def _listing_chart_points(listing: ResultListing) -> tuple[int, ...]:
+    """:func:`_chart_points` of a summary's listing."""
+    if not len(listing):
+        return ()
+    points = np.unique(listing.point)
+    worst = np.zeros(int(points.max()) + 1)
+    np.maximum.at(worst, listing.point, np.abs(listing.en))
+    ranked = sorted(points.tolist(), key=lambda p: (-float(worst[p]), p))[:CHART_POINTS]
+    return tuple(sorted(ranked))
+
+
+def participant_rows(
+    run: AnalysisRun, context: RunContext, participant_ids: Sequence[int]
+) -> dict[int, tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]]]:
+    """The scored results of these participants in ``run``, by participant id: one query
+    through the (participant → submission → result → score) indexes, whatever the round."""
+    rows = (
+        Score.objects.filter(run=run, result__submission__participant_id__in=list(participant_ids))
+        .order_by()
+        .values_list("result__submission__participant_id", *_SCORE_FIELDS)
+    )
+    found: dict[int, list[tuple[object, ...]]] = {pk: [] for pk in participant_ids}
+    for pk, *row in rows:
+        found.setdefault(pk, []).append(tuple(row))
+    return {pk: _rows(r, context.index, context.use_z) for pk, r in found.items()}
+
+
 def report_data(
     *,
     run: AnalysisRun,
@@ -79,19 +328,30 @@ def report_data(
     edition: int = 1,
     authorised_by: str = "",
     comments: str = "",
+    own: tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]] | None = None,
+    common: ComparisonCommon | None = None,
+    context: RunContext | None = None,
 ) -> ReportData:
     """The data of the summary report (``participant`` None) or of one participant's.
 
     Comments, conclusions and the authoriser come from the comparison (entered by the
-    coordinator); ``authorised_by`` and ``comments`` override them when given."""
+    coordinator); ``authorised_by`` and ``comments`` override them when given.  The run's
+    shared data comes from :func:`run_context`; a batch passes the participant's ``own``
+    rows (:func:`participant_rows`), the ``common`` comparison data and the ``context`` it
+    read once.  The summary of a large round lists every result from columns
+    (:func:`result_listing`), not from row objects: its ``results`` and ``scores`` are empty."""
     comparison = run.comparison
-    points, index = _points(comparison)
-    coordinators = tuple(person(u) for u in comparison.coordinators.order_by("username"))
-    parts = list(comparison.participants.order_by("code").values_list("code", "is_reference"))
-    results, scores = _results_and_scores(run, index)
-    assigned = _assigned(run, index)
+    context = context or run_context(run)
+    common = common or comparison_common(comparison)
+    listing = None
+    if context.rows is not None:
+        results, scores = context.rows
+    elif participant is None:
+        results, scores = (), ()
+        listing = result_listing(run, context)
+    else:
+        results, scores = own or participant_rows(run, context, [participant.pk])[participant.pk]
     template = protocols.TEMPLATES.get(comparison.protocol)
-    stable = stability_rows(comparison, index, assigned)
     assert run.finished_at is not None, "only a finished run is reported"
     return ReportData(
         kind=PARTICIPANT if participant else "summary",
@@ -102,31 +362,50 @@ def report_data(
         issue_date=run.finished_at,
         status=report_status(comparison, authorised_by),
         authorised_by=authorised_by or authoriser(comparison),
-        coordinators=coordinators,
+        coordinators=common.coordinators,
         software_version=proficiency.__version__,
         protocol_title=template.title if template else "Custom protocol",
         protocol_description=comparison.description or (template.description if template else ""),
         bench_descriptions=tuple(b.description for b in template.benches) if template else (),
-        frequencies_hz=tuple(sorted({p.frequency_hz for p in points})),
-        amplitudes=_amplitudes(points),
-        devices=_devices(comparison),
-        participants=tuple(code for code, _ in parts),
-        reference_code=next((code for code, ref in parts if ref), None),
-        points=tuple(points),
+        frequencies_hz=tuple(sorted({p.frequency_hz for p in context.points})),
+        amplitudes=_amplitudes(context.points),
+        devices=common.devices,
+        participants=context.participants,
+        reference_code=context.reference_code,
+        points=context.points,
         results=results,
-        assigned=assigned,
+        assigned=context.assigned,
         scores=scores,
-        matrices=_matrices(run),
+        matrices=context.matrices,
         en_limit=comparison.en_limit,
         sigma_pt_description=_sigma_pt(comparison),
         traceability=_traceability(comparison),
-        stability=_stability(stable),
-        stability_rows=stable,
+        stability=_stability(context.stability_rows),
+        stability_rows=context.stability_rows,
         comments=comments or comparison.report_comments,
         conclusions=comparison.report_conclusions,
         own_code=participant.code if participant else None,
-        chart_points=_chart_points(scores, participant.code if participant else None),
+        chart_points=(
+            _listing_chart_points(listing)
+            if listing is not None
+            else _chart_points(scores, participant.code if participant else None)
+        ),
+        stats=context.stats,
+        listing=listing,
     )
+
+
+@dataclass(frozen=True)
+class ComparisonCommon:
+    """The comparison's coordinators and devices: read once per batch of reports."""
+
+    coordinators: tuple[str, ...]
+    devices: tuple[DeviceInfo, ...]
+
+
+def comparison_common(comparison: Comparison) -> ComparisonCommon:
+    coordinators = tuple(person(u) for u in comparison.coordinators.order_by("username"))
+    return ComparisonCommon(coordinators, _devices(comparison))
 
 
 def _points(comparison: Comparison) -> tuple[list[PointInfo], dict[int, int]]:
@@ -167,32 +446,32 @@ def _devices(comparison: Comparison) -> tuple[DeviceInfo, ...]:
     )
 
 
+def _use_z(run: AnalysisRun) -> dict[int, bool]:
+    """Per point id: z (u(x_pt) ≤ 0.3·σ_pt) or z′ is printed."""
+    rows = run.assigned_values.values_list(
+        "measurement_point_id", "sigma_pt", "standard_uncertainty"
+    )
+    return {pid: sigma is not None and u <= 0.3 * sigma for pid, sigma, u in rows}
+
+
 def _results_and_scores(
-    run: AnalysisRun, index: dict[int, int]
+    run: AnalysisRun, index: dict[int, int], use_z: dict[int, bool]
 ) -> tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]]:
     """The scored results of the run with their scores, in point then lab order."""
-    sigma = dict(run.assigned_values.values_list("measurement_point_id", "sigma_pt"))
-    u_pt = dict(run.assigned_values.values_list("measurement_point_id", "standard_uncertainty"))
-    rows = Score.objects.filter(run=run).values_list(*_SCORE_FIELDS)
+    return _rows(Score.objects.filter(run=run).order_by().values_list(*_SCORE_FIELDS), index, use_z)
+
+
+def _rows(
+    rows: Iterable[Sequence[Any]], index: dict[int, int], use_z: dict[int, bool]
+) -> tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]]:
     results, scores = [], []
     for pid, lab, x, big_u, k, d, dp, en, zeta, z, zp, flag, zflag, corr in rows:
         i = index[pid]
         results.append(ResultRow(i, lab, x, big_u, k))
-        sigma_pt = sigma.get(pid)
-        use_z = sigma_pt is not None and u_pt[pid] <= 0.3 * sigma_pt
+        z_ok = use_z.get(pid, False)
         scores.append(
             ScoreRow(
-                i,
-                lab,
-                d,
-                dp,
-                en,
-                zeta,
-                z if use_z else zp,
-                "z" if use_z else "z′",
-                flag,
-                zflag,
-                corr,
+                i, lab, d, dp, en, zeta, z if z_ok else zp, "z" if z_ok else "z′", flag, zflag, corr
             )
         )
     results.sort(key=lambda r: (r.point, r.lab))
@@ -231,7 +510,7 @@ def _matrices(run: AnalysisRun) -> tuple[MatrixData, ...]:
     )
 
 
-def _amplitudes(points: list[PointInfo]) -> tuple[str, ...]:
+def _amplitudes(points: Sequence[PointInfo]) -> tuple[str, ...]:
     seen = {
         (p.bench, p.direction, p.frequency_hz): p.amplitude_m_s2
         for p in points

@@ -100,12 +100,17 @@ class Shared:
 
     fig: Figure
     ax: Any
+    to_px: Any  # the axes' data → pixel transform, frozen once drawn (the figure is dropped)
 
     def _freeze(self) -> None:
+        """Rasterise, keep the data → pixel transform and drop the figure: a cached chart
+        of ten thousand labs would otherwise hold its artists (megabytes) for good."""
         self.raster = _raster(self.fig)
+        self.to_px = self.ax.transData.frozen()
+        del self.fig, self.ax
 
     def _px(self, x: float, y: float) -> tuple[float, float]:
-        px, py = self.ax.transData.transform((x, y))
+        px, py = self.to_px.transform((x, y))
         return float(px), float(py)
 
 

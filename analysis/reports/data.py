@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
+
+import numpy as np
 
 SUMMARY = "summary"
 PARTICIPANT = "participant"
@@ -113,6 +116,71 @@ class MatrixData:
 
 
 @dataclass(frozen=True)
+class SpreadRow:
+    """All results at one point: their number, min / median / max and how many |En| > limit."""
+
+    point: int
+    n: int
+    low: float
+    median: float
+    high: float
+    bad: int
+
+
+@dataclass(frozen=True)
+class PointValues:
+    """Every lab's result at one point, labs in code order (a point chart's data)."""
+
+    labs: tuple[str, ...]
+    values: tuple[float, ...]
+    uncertainties: tuple[float, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class ResultListing:
+    """Every scored result of a large round as columns, for the summary's results table
+    (about 60 bytes a row instead of two row objects and a dict entry: about 1 kB).
+
+    Rows are in device (name order), point, lab (code order) order; ``devices`` gives each
+    device's name and its rows ``start:stop``.  ``lab`` indexes ``labs`` and ``flag``
+    indexes ``flags``; ``z`` holds z or z′ as in :class:`ScoreRow`, NaN when neither."""
+
+    labs: tuple[str, ...]
+    flags: tuple[str, ...]
+    devices: tuple[tuple[str, int, int], ...]
+    point: np.ndarray
+    lab: np.ndarray
+    value: np.ndarray
+    expanded_uncertainty: np.ndarray
+    coverage_factor: np.ndarray
+    d: np.ndarray
+    en: np.ndarray
+    zeta: np.ndarray
+    z: np.ndarray
+    flag: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.point)
+
+
+@dataclass(frozen=True, eq=False)
+class RoundStats:
+    """Figures over every result and score of a run (:mod:`analysis.reports.rounds`), the
+    same in every report of the run: computed once per run, not once per report.
+
+    ``frequency``: per device, per line (bench direction axis) the frequencies and the
+    median of the results there; ``largest_en``: (lab, largest |En|) in code order."""
+
+    n_results: int
+    n_scores: int
+    n_bad: int
+    spread: tuple[SpreadRow, ...]
+    point_values: Mapping[int, PointValues]
+    largest_en: tuple[tuple[str, float], ...]
+    frequency: tuple[tuple[str, tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...]], ...]
+
+
+@dataclass(frozen=True)
 class ReportData:
     """Everything printed in one report; the renderer adds nothing but layout."""
 
@@ -148,7 +216,26 @@ class ReportData:
     conclusions: str = ""
     own_code: str | None = None
     chart_points: tuple[int, ...] = field(default=())
+    # The round's figures; None: computed from ``results`` and ``scores`` (which then hold
+    # every row).  A participant report of a large round carries its own rows only.
+    stats: RoundStats | None = None
+    # The summary of a large round: every result as columns (``results`` and ``scores``
+    # are then empty and ``stats`` is given); None: the table lists ``results``.
+    listing: ResultListing | None = None
 
     @property
     def is_participant(self) -> bool:
         return self.kind == PARTICIPANT
+
+    @property
+    def round(self) -> RoundStats:
+        """``stats``, or the figures of ``results`` and ``scores`` (computed once)."""
+        if self.stats is not None:
+            return self.stats
+        cached = self.__dict__.get("_round")
+        if cached is None:
+            from analysis.reports.rounds import stats_of_rows
+
+            cached = stats_of_rows(self.points, self.results, self.scores, self.en_limit)
+            object.__setattr__(self, "_round", cached)
+        return cached

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import copy
 import functools
-from collections import defaultdict
-from statistics import median
 
 from reportlab import rl_config
 from reportlab.lib.colors import HexColor
@@ -103,20 +101,16 @@ def figures(data: ReportData) -> list[Flowable]:
 
 def _point_charts(data: ReportData) -> list[Flowable]:
     assigned = {a.point: a for a in data.assigned}
-    by_point: dict[int, list[int]] = defaultdict(list)
-    wanted = set(data.chart_points)
-    for i, r in enumerate(data.results):
-        if r.point in wanted:
-            by_point[r.point].append(i)
+    by_point = data.round.point_values
     out: list[Flowable] = []
     for index in data.chart_points:
         p, a, rows = data.points[index], assigned.get(index), by_point.get(index)
-        if a is None or not rows:
+        if a is None or rows is None or not rows.labs:
             continue
         chart = charts.point_chart(
-            tuple(data.results[i].lab for i in rows),
-            tuple(data.results[i].value for i in rows),
-            tuple(data.results[i].expanded_uncertainty for i in rows),
+            rows.labs,
+            rows.values,
+            rows.uncertainties,
             x_pt=a.value,
             u_x_pt_expanded=2 * a.standard_uncertainty,
             title=p.full_label,
@@ -127,30 +121,19 @@ def _point_charts(data: ReportData) -> list[Flowable]:
 
 
 def _en_chart(data: ReportData) -> list[Flowable]:
-    largest: dict[str, float] = {}
-    for s in data.scores:
-        largest[s.lab] = max(largest.get(s.lab, 0.0), abs(s.en))
+    largest = data.round.largest_en
     if not largest:
         return []
-    labs = tuple(sorted(largest))
-    chart = charts.en_chart(labs, tuple(largest[c] for c in labs), limit=data.en_limit)
+    labs = tuple(lab for lab, _ in largest)
+    chart = charts.en_chart(labs, tuple(en for _, en in largest), limit=data.en_limit)
     return [RasterImage(chart.raster, chart.overlay(data.own_code))]
 
 
 def _frequency_charts(data: ReportData) -> list[Flowable]:
     """Median of the participants' results against frequency, one line per bench,
     direction and axis (the same in every report of a run, so the raster is cached)."""
-    values: dict[str, dict[str, dict[float, list[float]]]] = defaultdict(dict)
-    for r in data.results:
-        p = data.points[r.point]
-        line = values[p.device].setdefault(f"{p.bench} {p.direction} {p.axis}", {})
-        line.setdefault(p.frequency_hz, []).append(r.value)
     out: list[Flowable] = []
-    for device in sorted(values):
-        series = tuple(
-            (label, tuple(sorted(by_f)), tuple(float(median(by_f[f])) for f in sorted(by_f)))
-            for label, by_f in sorted(values[device].items())
-        )
+    for device, series in data.round.frequency:
         unit = next(p.unit for p in data.points if p.device == device)
         title = f"{device}: median sensitivity against frequency"
         out.append(RasterImage(charts.frequency_chart(series, title=title, unit=unit)))

@@ -10,7 +10,7 @@ from reportlab.lib.units import mm
 from reportlab.platypus import Flowable, KeepTogether, Paragraph, Spacer, Table, TableStyle
 
 from analysis.reports import figures
-from analysis.reports.data import ReportData, ResultRow, ScoreRow
+from analysis.reports.data import ReportData, ResultListing, ResultRow, ScoreRow
 from analysis.reports.styles import BAD_TEXT, BOLD, FONT, GRID, HEAD_BACKGROUND, OWN_BACKGROUND
 from analysis.reports.styles import STYLES as S
 from analysis.reports.tables import FastTable
@@ -211,16 +211,29 @@ def _stability_table(data: ReportData) -> list[Flowable]:
     return [Spacer(1, 2 * mm), table(rows, widths, (), bad)]
 
 
+CODES_LISTED = 1000  # above this many participants a participant report lists no codes
+
+
 def participants(data: ReportData) -> list[Flowable]:
-    codes = ", ".join(f"<b>{c}</b>" if c == data.own_code else c for c in data.participants)
+    """The participants by code; a participant report of a round of more than
+    ``CODES_LISTED`` participants gives their number and its own code only (pages of
+    codes in each of thousands of reports; the summary lists them)."""
     ref = (
         f" The reference (pilot) laboratory is {data.reference_code}."
         if data.reference_code
         else ""
     )
+    n = len(data.participants)
+    if data.is_participant and n > CODES_LISTED:
+        text = (
+            f"{n:,} participants; your code is <b>{data.own_code}</b>. The summary report "
+            f"lists every participant's code.{ref}"
+        )
+        return [para("4 Participants", "h1"), para(text)]
+    codes = ", ".join(f"<b>{c}</b>" if c == data.own_code else c for c in data.participants)
     return [
         para("4 Participants", "h1"),
-        para(f"{len(data.participants)} participants, by code: {codes}.{ref}"),
+        para(f"{n} participants, by code: {codes}.{ref}"),
     ]
 
 
@@ -254,10 +267,14 @@ def results_and_scores(data: ReportData) -> list[Flowable]:
         para("6 Results and scores", "h1"),
         para(INTERPRETATION.format(limit=data.en_limit)),
     ]
+    if data.listing is not None:
+        for device, start, stop in data.listing.devices:
+            flow += [para(escape(device), "h2"), ListingTable(data, data.listing, start, stop)]
+        return flow
     shown = data.results
-    if data.is_participant and len(data.results) > FULL_TABLE_ROWS:
+    if is_large(data):
         shown = tuple(r for r in data.results if r.lab == data.own_code)
-        flow += [para(_LARGE_ROUND.format(n=len(data.results), own=data.own_code))]
+        flow += [para(_LARGE_ROUND.format(n=data.round.n_results, own=data.own_code))]
         flow += _spread_table(data)
     by_device: dict[str, list[ResultRow]] = {}
     for r in shown:
@@ -274,23 +291,20 @@ _LARGE_ROUND = (
 )
 
 
+def is_large(data: ReportData) -> bool:
+    """A participant report of a round too large to list every result."""
+    return data.is_participant and data.round.n_results > FULL_TABLE_ROWS
+
+
 def _spread_table(data: ReportData) -> list[Flowable]:
     """Per point: number of results, min / median / max, x_pt and the incompatible count."""
-    values: dict[int, list[float]] = {}
-    for r in data.results:
-        values.setdefault(r.point, []).append(r.value)
-    bad: dict[int, int] = {}
-    for sc in data.scores:
-        bad[sc.point] = bad.get(sc.point, 0) + (abs(sc.en) > data.en_limit)
     x_pt = {a.point: a.value for a in data.assigned}
     rows = [["Device", "Point", "n", "min", "median", "max", "x_pt", "|En| > limit"]]
-    for point in sorted(values):
-        v, p = sorted(values[point]), data.points[point]
-        mid = len(v) // 2
-        med = v[mid] if len(v) % 2 else (v[mid - 1] + v[mid]) / 2
+    for r in data.round.spread:
+        p = data.points[r.point]
         rows.append(
-            [p.device, p.label, str(len(v)), f"{v[0]:.6g}", f"{med:.6g}", f"{v[-1]:.6g}",
-             num(x_pt.get(point), ".6g"), str(bad.get(point, 0))]
+            [p.device, p.label, str(r.n), f"{r.low:.6g}", f"{r.median:.6g}", f"{r.high:.6g}",
+             num(x_pt.get(r.point), ".6g"), str(r.bad)]
         )  # fmt: skip
     widths = [16 * mm, 46 * mm, 12 * mm, 20 * mm, 20 * mm, 20 * mm, 20 * mm, 20 * mm]
     return [table(rows, widths), Spacer(1, 2 * mm)]
@@ -325,19 +339,93 @@ def _result_table(
             own.append(len(out) - 1)
         if s and abs(s.en) > data.en_limit:
             bad.append((len(out) - 1, 6))
-    widths = [
-        42 * mm,
-        14 * mm,
-        19 * mm,
-        14 * mm,
-        8 * mm,
-        17 * mm,
-        13 * mm,
-        13 * mm,
-        14 * mm,
-        20 * mm,
-    ]
-    return table(out, widths, own, bad)
+    return table(out, RESULT_WIDTHS, own, bad)
+
+
+RESULT_HEAD = ["Point", "Lab", "Value", "U", "k", "D", "En", "ζ", "z / z′", "Flag"]
+RESULT_WIDTHS = [
+    42 * mm,
+    14 * mm,
+    19 * mm,
+    14 * mm,
+    8 * mm,
+    17 * mm,
+    13 * mm,
+    13 * mm,
+    14 * mm,
+    20 * mm,
+]
+
+
+class ListingTable(Flowable):
+    """Rows ``start:stop`` of a :class:`ResultListing` as a results table built one page at
+    a time: splitting builds a page-sized :class:`FastTable` of the rows that fit (their
+    height is fixed) and a new ``ListingTable`` of the rest, so the cost is linear in the
+    rows and only one page of cells exists at a time.  (One reportlab ``Table`` of every
+    row re-creates the remaining rows at each page break: quadratic time, and the cells of
+    every row held at once.)  The point's label is printed on its first row and again at
+    the top of each page."""
+
+    def __init__(self, data: ReportData, listing: ResultListing, start: int, stop: int) -> None:
+        super().__init__()
+        self.data, self.listing, self.start, self.stop = data, listing, start, stop
+
+    def wrap(self, availWidth: float, availHeight: float) -> tuple[float, float]:
+        self.width, self.height = sum(RESULT_WIDTHS), (self.stop - self.start + 1) * ROW_HEIGHT
+        return self.width, self.height
+
+    def split(self, availWidth: float, availHeight: float) -> list[Flowable]:
+        fit = min(int(availHeight // ROW_HEIGHT) - 1, self.stop - self.start)
+        while fit > 0:
+            part = self.table(self.start, self.start + fit)
+            if part.wrap(availWidth, availHeight)[1] <= availHeight:
+                break
+            fit -= 1
+        if fit <= 0:
+            return []
+        if self.start + fit == self.stop:
+            return [part]
+        return [part, ListingTable(self.data, self.listing, self.start + fit, self.stop)]
+
+    def draw(self) -> None:
+        part = self.table(self.start, self.stop)
+        part.wrap(self.width, self.height)
+        part.drawOn(self.canv, 0, 0)
+
+    def table(self, start: int, stop: int) -> Table:
+        """The rows ``start:stop`` with the header, formatted as :func:`_result_table` does."""
+        data, s = self.data, self.listing
+        limit, labs, flags = data.en_limit, s.labs, s.flags
+        out = [list(RESULT_HEAD)]
+        bad: list[tuple[int, int]] = []
+        last = -1
+        columns = zip(
+            *(
+                a[start:stop].tolist()
+                for a in (s.point, s.lab, s.value, s.expanded_uncertainty, s.coverage_factor,
+                          s.d, s.en, s.zeta, s.z, s.flag)
+            ),
+            strict=True,
+        )  # fmt: skip
+        for n, (point, lab, x, big_u, k, d, en, zeta, z, flag) in enumerate(columns, start=1):
+            out.append(
+                [
+                    data.points[point].label if point != last else "",
+                    labs[lab],
+                    f"{x:.6g}",
+                    f"{big_u:.3g}",
+                    f"{k:g}",
+                    f"{d:+.4g}",
+                    f"{en:.2f}",
+                    f"{zeta:.2f}",
+                    "–" if z != z else f"{z:.2f}",  # NaN: no z
+                    flags[flag],
+                ]
+            )
+            last = point
+            if abs(en) > limit:
+                bad.append((n, 6))
+        return table(out, RESULT_WIDTHS, (), bad)
 
 
 def matrices(data: ReportData) -> list[Flowable]:
@@ -377,8 +465,7 @@ def plain(text: str) -> str:
 
 def comments(data: ReportData) -> list[Flowable]:
     """The coordinator's comments and conclusions, then the count of compatible results."""
-    n = len(data.scores)
-    bad = sum(abs(s.en) > data.en_limit for s in data.scores)
+    n, bad = data.round.n_scores, data.round.n_bad
     conclusions = plain(data.conclusions) or "No conclusions were entered."
     return [
         para("9 Comments and conclusions", "h1"),

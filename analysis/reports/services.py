@@ -11,13 +11,23 @@ import logging
 from collections.abc import Sequence
 
 from auditlog.context import set_actor
+from django.conf import settings
 from django.core.files.base import ContentFile
 from django.db import transaction
 from django.db.models import Max
 
 import proficiency
+from analysis.bulk import planner_stats_refresh
 from analysis.models import AnalysisRun, Report
-from analysis.reports.assemble import report_data
+from analysis.reports.assemble import (
+    ComparisonCommon,
+    RunContext,
+    comparison_common,
+    participant_rows,
+    report_data,
+    run_context,
+)
+from analysis.reports.data import ResultRow, ScoreRow
 from analysis.reports.render import render_report
 from analysis.selectors import current_run
 from labs.models import Participant
@@ -88,12 +98,16 @@ def report_notes_update(
     return locked
 
 
-def _reportable_run(comparison: Comparison) -> AnalysisRun:
+def _check_reportable(comparison: Comparison) -> None:
     if comparison.status not in REPORTABLE:
         raise StateConflict(
             f"{comparison.code} is {comparison.status}: reports are issued for analysed "
             "(preliminary) or published (final) comparisons."
         )
+
+
+def _reportable_run(comparison: Comparison) -> AnalysisRun:
+    _check_reportable(comparison)
     run = current_run(comparison)
     if run is None:
         raise StateConflict(f"{comparison.code} has no successful analysis run to report.")
@@ -145,18 +159,7 @@ def report_issue(
         )
     )
     version = (previous.aggregate(v=Max("version"))["v"] or 0) + 1
-    report = Report(
-        comparison=locked,
-        run=run,
-        kind=kind,
-        participant=participant,
-        version=version,
-        sha256=hashlib.sha256(pdf).hexdigest(),
-        size=len(pdf),
-        software_version=proficiency.__version__,
-    )
-    report.file.save(f"{report.token}.pdf", ContentFile(pdf), save=False)
-    report.save()
+    report = _store(run, kind, participant, version, pdf)
     previous.exclude(pk=report.pk).filter(superseded=False).update(superseded=True)
     return report
 
@@ -164,8 +167,17 @@ def report_issue(
 def _lock(comparison: Comparison, participant: Participant | None) -> Comparison:
     if participant is None:
         return Comparison.objects.select_for_update().get(pk=comparison.pk)
-    list(Participant.objects.select_for_update().filter(pk=participant.pk).values_list("pk"))
+    _lock_participant(participant)
     return Comparison.objects.get(pk=comparison.pk)
+
+
+def _lock_participant(participant: Participant) -> None:
+    """FOR UPDATE of the participant's row only.  ``order_by()``: Participant's default
+    ordering joins its comparison, and FOR UPDATE locks every joined row: every report
+    of a comparison then waited for the one being rendered (two workers ran one at a
+    time)."""
+    rows = Participant.objects.select_for_update(of=("self",)).filter(pk=participant.pk)
+    list(rows.order_by().values_list("pk"))
 
 
 def report_issue_once(*, run_id: int, kind: str, participant_id: int | None) -> Report | None:
@@ -186,6 +198,98 @@ def report_issue_once(*, run_id: int, kind: str, participant_id: int | None) -> 
     return report_issue(comparison=run.comparison, kind=kind, participant=participant)
 
 
+def report_issue_batch(*, run_id: int, participant_ids: Sequence[int]) -> list[int]:
+    """Issue the participant reports of run ``run_id`` for these participants, skipping
+    those that already have a current report of the run; the ids of their reports (new
+    or found), or [] when the run is no longer current.  The batch task's body.
+
+    Safe twice, even at once: each report is its own transaction under its participant's
+    row lock, which re-checks for a current report of the run first; a batch redelivered
+    after a lost worker skips the reports already stored.  The run's shared data is read
+    once per process (:func:`~analysis.reports.assemble.run_context`) and the batch's own
+    rows in one query, so the queries per batch do not grow with the round."""
+    run = AnalysisRun.objects.select_related("comparison").get(pk=run_id)
+    comparison = run.comparison
+    if current_run(comparison) != run:
+        return []
+    _check_reportable(comparison)
+    ids = list(dict.fromkeys(participant_ids))
+    done = dict(
+        Report.objects.filter(
+            run=run, kind=Report.Kind.PARTICIPANT, superseded=False, participant_id__in=ids
+        ).values_list("participant_id", "pk")
+    )
+    todo = [pk for pk in ids if pk not in done]
+    if todo:
+        participants = Participant.objects.in_bulk(todo)
+        wrong = [
+            pk
+            for pk in todo
+            if pk not in participants or participants[pk].comparison_id != comparison.pk
+        ]
+        if wrong:
+            raise ValidationFailed(f"Participants {wrong} are not in {comparison.code}.")
+        context = run_context(run)
+        own = participant_rows(run, context, todo) if context.rows is None else {}
+        common = comparison_common(comparison)
+        for pk in todo:
+            report = _issue_current(run, participants[pk], own.get(pk), common, context)
+            done[pk] = report.pk
+    return [done[pk] for pk in ids]
+
+
+@transaction.atomic
+def _issue_current(
+    run: AnalysisRun,
+    participant: Participant,
+    own: tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]] | None,
+    common: ComparisonCommon,
+    context: RunContext,
+) -> Report:
+    """The current participant report of ``run``: found under the participant's row lock,
+    else rendered and stored (superseding the older versions)."""
+    _lock_participant(participant)
+    history = list(
+        Report.objects.filter(
+            comparison_id=run.comparison_id, kind=Report.Kind.PARTICIPANT, participant=participant
+        )
+        .order_by("version")
+        .values_list("pk", "run_id", "version", "superseded")
+    )
+    current = [pk for pk, run_id, _, superseded in history if run_id == run.pk and not superseded]
+    newer = [pk for pk, run_id, _, _ in history if run_id is not None and run_id > run.pk]
+    if current or newer:  # newer: a later run became current during this batch
+        return Report.objects.get(pk=(current or newer)[-1])
+    edition = report_edition([r for _, r, _, _ in history], run)
+    data = report_data(
+        run=run, participant=participant, edition=edition, own=own, common=common, context=context
+    )
+    version = max((v for _, _, v, _ in history), default=0) + 1
+    report = _store(run, Report.Kind.PARTICIPANT, participant, version, render_report(data))
+    older = [pk for pk, _, _, superseded in history if not superseded]
+    if older:
+        Report.objects.filter(pk__in=older).update(superseded=True)
+    return report
+
+
+def _store(
+    run: AnalysisRun, kind: str, participant: Participant | None, version: int, pdf: bytes
+) -> Report:
+    report = Report(
+        comparison=run.comparison,
+        run=run,
+        kind=kind,
+        participant=participant,
+        version=version,
+        sha256=hashlib.sha256(pdf).hexdigest(),
+        size=len(pdf),
+        software_version=proficiency.__version__,
+    )
+    report.file.save(f"{report.token}.pdf", ContentFile(pdf), save=False)
+    report.save()
+    return report
+
+
 def report_jobs(comparison: Comparison) -> list[tuple[int, str, int | None]]:
     """(run id, kind, participant id) of every report a comparison's current run needs."""
     run = _reportable_run(comparison)
@@ -194,14 +298,29 @@ def report_jobs(comparison: Comparison) -> list[tuple[int, str, int | None]]:
     return jobs + [(run.pk, Report.Kind.PARTICIPANT, pk) for pk in ids]
 
 
+def report_batches(comparison: Comparison, size: int | None = None) -> tuple[int, list[list[int]]]:
+    """The current run's id and its participants' ids in code order, in batches of
+    ``size`` (default ``settings.REPORTS_BATCH_SIZE``, 25): one task each.  Refreshes
+    the planner's statistics of the tables the batches read
+    (:func:`analysis.bulk.planner_stats_refresh`)."""
+    step: int = size if size else getattr(settings, "REPORTS_BATCH_SIZE", 25)
+    run = _reportable_run(comparison)
+    planner_stats_refresh()
+    ids = list(comparison.participants.order_by("code").values_list("pk", flat=True))
+    return run.pk, [ids[i : i + step] for i in range(0, len(ids), step)]
+
+
 def reports_issue_all(*, comparison: Comparison) -> list[Report]:
     """Summary + one report per participant, synchronously (the task fans them out)."""
-    out = []
-    for run_id, kind, participant_id in report_jobs(comparison):
-        report = report_issue_once(run_id=run_id, kind=kind, participant_id=participant_id)
-        if report is not None:
-            out.append(report)
-    return out
+    run_id, batches = report_batches(comparison)
+    summary = report_issue_once(run_id=run_id, kind=Report.Kind.SUMMARY, participant_id=None)
+    if summary is None:
+        return []
+    ids = [
+        pk for batch in batches for pk in report_issue_batch(run_id=run_id, participant_ids=batch)
+    ]
+    found = Report.objects.in_bulk(ids)
+    return [summary, *(found[pk] for pk in ids)]
 
 
 def reports_enqueue(*, comparison_id: int) -> None:

@@ -23,12 +23,26 @@ def report_issue_task(run_id: int, kind: str, participant_id: int | None) -> int
     return report.pk if report else None
 
 
+@shared_task(acks_late=True, reject_on_worker_lost=True, **LIMITS)
+def report_issue_batch_task(run_id: int, participant_ids: list[int]) -> list[int]:
+    """Issue the participant reports of a batch of participants (those not issued yet);
+    the ids of their reports.  Acknowledged late: a batch lost with its worker is
+    delivered again and skips the reports already stored."""
+    from analysis.reports.services import report_issue_batch
+
+    return report_issue_batch(run_id=run_id, participant_ids=participant_ids)
+
+
 @shared_task(**LIMITS)
 def reports_issue_all_task(comparison_id: int) -> int:
-    """Fan out: one ``report_issue_task`` per report of the comparison (a group)."""
-    from analysis.reports.services import report_jobs
+    """Fan out, as one group: the summary's ``report_issue_task``, then one
+    ``report_issue_batch_task`` per batch of ``settings.REPORTS_BATCH_SIZE`` participants
+    (one task per report spent more time on the broker and on re-reading the round's
+    shared data than on the report itself).  The number of reports."""
+    from analysis.reports.services import report_batches
     from proficiency.models import Comparison
 
-    jobs = report_jobs(Comparison.objects.get(pk=comparison_id))
-    group(report_issue_task.s(*job) for job in jobs).apply_async()
-    return len(jobs)
+    run_id, batches = report_batches(Comparison.objects.get(pk=comparison_id))
+    summary = report_issue_task.s(run_id, "summary", None)
+    group([summary, *(report_issue_batch_task.s(run_id, b) for b in batches)]).apply_async()
+    return 1 + sum(len(b) for b in batches)

@@ -42,10 +42,10 @@ def test_own_result_is_drawn_in_pink_over_the_shared_chart():
     mark = chart.overlay("L22")
     assert chart.overlay(None) is None and chart.overlay("nobody") is None
     ((x, y),) = mark.dots
-    assert (x, y) == pytest.approx(chart.ax.transData.transform((1, 420.0)))
+    assert (x, y) == pytest.approx(chart.to_px.transform((1, 420.0)))
     bottom, top = mark.lines[0][1], mark.lines[0][3]
     assert (bottom, top) == pytest.approx(
-        (chart.ax.transData.transform((1, 418.0))[1], chart.ax.transData.transform((1, 422.0))[1])
+        (chart.to_px.transform((1, 418.0))[1], chart.to_px.transform((1, 422.0))[1])
     )
     from io import BytesIO
 
