@@ -36,6 +36,7 @@ from django.db.models.functions import Coalesce, Greatest
 from django.utils import timezone
 
 import proficiency
+from analysis.bulk import planner_stats_refresh
 from analysis.core.groups import CoreInputError
 from analysis.core.pooled import compatibility_matrices_pooled, moments
 from analysis.models import AnalysisChunk, AnalysisRun, AssignedValue, CompatibilityMatrix, Score
@@ -185,6 +186,7 @@ def _plan(run: AnalysisRun) -> int:
     """Split the points with accepted results into chunks of about ANALYSIS_CHUNK_RESULTS
     results (whole points, ascending ids); replaces an earlier plan and its outputs."""
     comparison = run.comparison
+    planner_stats_refresh()  # right after a bulk import the tables may have no statistics
     point_ids, counts = point_result_counts(comparison)
     if point_ids.size == 0:
         raise ValidationFailed(f"Comparison {comparison.code} has no accepted results to analyse.")

@@ -252,3 +252,34 @@ def test_peak_rss_is_this_process_high_water_mark():
     del block
     assert peak >= before + 190_000
     assert peak < 4 * 2**20  # KiB: the test process, not the machine
+
+
+def _flush_table_statistics() -> None:
+    """Make this connection's pending row counts visible in pg_stat_user_tables (they are
+    flushed when the backend goes idle, at most once a second unless forced)."""
+    with connection.cursor() as cur:
+        cur.execute("SELECT pg_stat_force_next_flush()")
+    with connection.cursor() as cur:
+        cur.execute("SELECT 1")
+
+
+@pytest.mark.skipif(connection.vendor != "postgresql", reason="planner statistics: PostgreSQL")
+def test_planner_stats_refresh_analyses_changed_tables_once(demo):
+    from analysis.bulk import planner_stats_refresh
+
+    _flush_table_statistics()
+    assert "labs_result" in planner_stats_refresh()  # the demo's results were just loaded
+    _flush_table_statistics()
+    assert planner_stats_refresh() == []
+
+
+@pytest.mark.skipif(connection.vendor != "postgresql", reason="planner statistics: PostgreSQL")
+def test_planning_a_run_refreshes_the_statistics_of_a_freshly_loaded_round(demo, settings):
+    """Right after a bulk load the round's tables may have no planner statistics (autovacuum
+    off, or not run yet): planning the run analyses them before the chunks read the round."""
+    from analysis.bulk import planner_stats_refresh
+
+    _flush_table_statistics()
+    run_with(demo, settings, 200)
+    _flush_table_statistics()
+    assert "labs_result" not in planner_stats_refresh()
