@@ -5,7 +5,7 @@ fills it with one closed comparison of accepted results per size (labs x points)
 for each size and worker count starts that many Celery worker processes (``-P solo``)
 on a Redis broker, runs one analysis (plan -> chunks: load -> compute -> store ->
 matrices) and reports the run's wall time with its stages and the peak RSS of the
-workers (``ru_maxrss`` recorded by the tasks on the run row), against the time
+workers (``VmHWM`` recorded by the tasks on the run row), against the time
 PostgreSQL itself needs to read and write the same rows with COPY (largest size).
 
     .venv/bin/python bench/bench_analysis.py [--sizes 1000x250,1000x500,1000x1000]
@@ -136,14 +136,19 @@ def copy_baseline(comparison_id: int) -> tuple[float, float]:
     return read, write
 
 
-def start_workers(n: int, queue: str, chunk: int) -> list[subprocess.Popen]:
+def start_workers(n: int, queue: str, chunk: int, quiet: bool = False) -> list[subprocess.Popen]:
+    """``n`` worker processes on ``queue``; ``quiet``: without their banner (stdout)."""
     env = os.environ | {"DATABASE_URL": SCRATCH_URL, "CELERY_BROKER_URL": BROKER,
                         "ANALYSIS_CHUNK_RESULTS": str(chunk), "DEBUG": "false",
                         "SECRET_KEY": f"bench-{uuid.uuid4().hex}"}  # fmt: skip
     cmd = [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-P", "solo",
            "-Q", queue, "--loglevel=WARNING", "--without-gossip", "--without-mingle",
            "--without-heartbeat"]  # fmt: skip
-    return [subprocess.Popen([*cmd, "-n", f"bench{i}@%h"], cwd=ROOT, env=env) for i in range(n)]
+    out = subprocess.DEVNULL if quiet else None
+    return [
+        subprocess.Popen([*cmd, "-n", f"bench{i}@%h"], cwd=ROOT, env=env, stdout=out)
+        for i in range(n)
+    ]
 
 
 def wait_ready(n: int, timeout: float = 60) -> None:
@@ -156,8 +161,88 @@ def wait_ready(n: int, timeout: float = 60) -> None:
     raise SystemExit(f"{n} worker(s) did not answer a ping within {timeout} s")
 
 
-def run_analysis(comparison_id: int, n_workers: int, chunk: int) -> dict:
-    """One run on ``n_workers`` fresh worker processes: wall time, stages, peak RSS."""
+def worker_stats(workers: list[subprocess.Popen]) -> tuple[float, int]:
+    """CPU seconds (user + system) of the worker processes so far, and the largest
+    ``VmHWM`` (KiB) among them, from /proc (Linux; ``-P solo``: the task runs in the
+    process started).  (0.0, 0) elsewhere."""
+    cpu, hwm = 0.0, 0
+    tick = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+    for w in workers:
+        try:
+            stat = Path(f"/proc/{w.pid}/stat").read_text().rsplit(")", 1)[1].split()
+            cpu += (int(stat[11]) + int(stat[12])) / tick
+            for line in Path(f"/proc/{w.pid}/status").read_text().splitlines():
+                if line.startswith("VmHWM:"):
+                    hwm = max(hwm, int(line.split()[1]))
+        except OSError:
+            pass
+    return cpu, hwm
+
+
+class DatabaseCpu:
+    """CPU seconds of the PostgreSQL backends serving the scratch database while it runs:
+    a thread lists the backends (``pg_stat_activity``) every 20 ms and reads their CPU
+    time from /proc (server on this machine, Linux).  A backend already there at the start
+    counts from then; one that lives less than 20 ms is missed.  0.0 where /proc is not
+    readable."""
+
+    def __init__(self) -> None:
+        import threading
+
+        self.first: dict[int, float] = {}
+        self.last: dict[int, float] = {}
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._poll, daemon=True)
+
+    @staticmethod
+    def _cpu(pid: int) -> float | None:
+        try:
+            stat = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            return None
+        return (int(stat[11]) + int(stat[12])) / os.sysconf("SC_CLK_TCK")
+
+    def _poll(self) -> None:
+        import psycopg
+
+        with psycopg.connect(SCRATCH_URL, autocommit=True) as conn:
+            me = conn.info.backend_pid
+            started = False
+            while not self.stop.is_set():
+                rows = conn.execute(
+                    "SELECT pid FROM pg_stat_activity WHERE datname = current_database()"
+                ).fetchall()
+                for (pid,) in rows:
+                    if pid == me or (cpu := self._cpu(pid)) is None:
+                        continue
+                    self.first.setdefault(pid, cpu if not started else 0.0)
+                    self.last[pid] = cpu
+                started = True
+                self.stop.wait(0.02)
+
+    def __enter__(self) -> DatabaseCpu:
+        self.thread.start()
+        time.sleep(0.1)  # the first listing: the backends already there
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop.set()
+        self.thread.join(5)
+
+    @property
+    def seconds(self) -> float:
+        return sum(self.last[p] - self.first[p] for p in self.last)
+
+
+def run_analysis(
+    comparison_id: int, n_workers: int, chunk: int, keep_run: bool = False, quiet: bool = False
+) -> dict:
+    """One run on ``n_workers`` fresh worker processes: wall time, stages, peak RSS (the
+    run's, recorded by its chunks, and the workers' ``VmHWM`` at the end), the workers'
+    CPU seconds during the run.  ``keep_run``: keep the run (and its scores); ``quiet``:
+    the workers' banners not shown."""
+    from django.db import connection
+
     from analysis.models import AnalysisRun, Score
     from analysis.services import analysis_run_start
     from proficiency.celery import app
@@ -165,31 +250,41 @@ def run_analysis(comparison_id: int, n_workers: int, chunk: int) -> dict:
 
     queue = f"bench-{uuid.uuid4().hex[:6]}"
     app.conf.task_default_queue = queue
-    workers = start_workers(n_workers, queue, chunk)
+    workers = start_workers(n_workers, queue, chunk, quiet)
     try:
         wait_ready(n_workers)
+        cpu0, _ = worker_stats(workers)
         comparison = Comparison.objects.get(pk=comparison_id)
         Comparison.objects.filter(pk=comparison_id).update(status="closed")
-        t0 = time.perf_counter()
-        run = analysis_run_start(comparison=comparison, user=None)
-        stages: dict[str, float] = {}
-        last = None
-        while True:
-            run.refresh_from_db()
-            if run.stage != last:
-                stages[run.stage or "queued"] = time.perf_counter() - t0
-                last = run.stage
-            if run.status in ("succeeded", "failed"):
-                break
-            time.sleep(0.05)
-        total = time.perf_counter() - t0
+        load_before = os.getloadavg()[0]
+        with DatabaseCpu() as db_cpu:
+            t0 = time.perf_counter()
+            run = analysis_run_start(comparison=comparison, user=None)
+            stages: dict[str, float] = {}
+            last = None
+            while True:
+                run.refresh_from_db()
+                if run.stage != last:
+                    stages[run.stage or "queued"] = time.perf_counter() - t0
+                    last = run.stage
+                if run.status in ("succeeded", "failed"):
+                    break
+                time.sleep(0.05)
+            total = time.perf_counter() - t0
+        cpu1, hwm = worker_stats(workers)
         if run.status != "succeeded":
             raise SystemExit(f"run failed: {run.error}")
         n = comparison.measurement_points.count() * comparison.participants.count()
         assert Score.objects.filter(run=run).count() == n
         chunks = list(run.chunks.order_by("index").values_list("seconds", "peak_rss_kb"))
-        AnalysisRun.objects.filter(pk=run.pk).delete()  # keep the score table small
+        if not keep_run:
+            AnalysisRun.objects.filter(pk=run.pk).delete()  # keep the score table small
+        with connection.cursor() as cur:  # and every run starts from the same table state
+            cur.execute("VACUUM analysis_score")
         return {"total": total, "stages": stages, "rss_mb": run.peak_rss_kb / 1024,
+                "load": (load_before, os.getloadavg()[0]),
+                "run_id": run.pk, "worker_cpu_s": cpu1 - cpu0, "db_cpu_s": db_cpu.seconds,
+                "worker_hwm_mb": hwm / 1024,
                 "chunks": len(chunks), "chunk_s": sum(c[0] for c in chunks),
                 "chunk_rss_mb": [c[1] // 1024 for c in chunks]}  # fmt: skip
     finally:
@@ -202,7 +297,7 @@ def run_analysis(comparison_id: int, n_workers: int, chunk: int) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--sizes", default="1000x250,1000x500,1000x1000", help="LABSxPOINTS,...")
-    ap.add_argument("--workers", default="1,2")
+    ap.add_argument("--workers", default="1,2", help="worker counts in order, repeats allowed")
     ap.add_argument("--chunk", type=int, default=100_000, help="ANALYSIS_CHUNK_RESULTS")
     ap.add_argument("--keep", action="store_true", help="keep the scratch database")
     args = ap.parse_args()
@@ -225,10 +320,13 @@ def main() -> None:
                 r = run_analysis(cid, w, args.chunk)
                 rows.append((labs, points, w, r))
                 print(f"  {labs * points:>9,} results, {w} worker(s): {r['total']:.1f} s, "
-                      f"{r['chunks']} chunks ({r['chunk_s']:.1f} s in chunk tasks), peak RSS "
+                      f"{r['chunks']} chunks ({r['chunk_s']:.1f} s in chunk tasks; CPU: "
+                      f"workers {r['worker_cpu_s']:.1f} s, database {r['db_cpu_s']:.1f} s), "
+                      "peak RSS "
                       f"{r['rss_mb']:.0f} MiB; stages: "
                       + ", ".join(f"{k} {v:.1f}" for k, v in r["stages"].items())
-                      + f"; chunk peak RSS (MiB) {r['chunk_rss_mb']}",
+                      + f"; chunk peak RSS (MiB) {r['chunk_rss_mb']}; load average "
+                      f"{r['load'][0]:.2f} -> {r['load'][1]:.2f}",
                       flush=True)  # fmt: skip
         read, write = copy_baseline(cid)
         print(f"COPY baseline ({labs * points:,} results): read {read:.1f} s + write {write:.1f} s")
@@ -245,7 +343,11 @@ def main() -> None:
 def summarise(rows: list, worker_counts: list[int]) -> None:
     import numpy as np
 
-    by = {(labs * points, w): r["total"] for labs, points, w, r in rows}
+    runs: dict[tuple[int, int], list[float]] = {}
+    for labs, points, w, r in rows:  # a worker count may be repeated: --workers 1,2,1,2
+        runs.setdefault((labs * points, w), []).append(round(r["total"], 1))
+    by = {key: float(np.median(times)) for key, times in runs.items()}
+    worker_counts = sorted(set(worker_counts))
     sizes = sorted({n for n, _ in by})
     for w in worker_counts:
         t = [by[(n, w)] for n in sizes]
@@ -254,7 +356,8 @@ def summarise(rows: list, worker_counts: list[int]) -> None:
             print(f"{w} worker(s): time ~ results^{slope:.2f}")
     if 1 in worker_counts and 2 in worker_counts:
         for n in sizes:
-            print(f"{n:>9,} results: 2 workers {by[(n, 1)] / by[(n, 2)]:.2f}x faster than 1")
+            print(f"{n:>9,} results: 2 workers {by[(n, 1)] / by[(n, 2)]:.2f}x faster than 1 "
+                  f"(medians of {runs[(n, 1)]} and {runs[(n, 2)]} s)")  # fmt: skip
     big = max(sizes)
     best = min(by[(big, w)] for w in worker_counts)
     rss = max(r["rss_mb"] for *_, r in rows)

@@ -8,8 +8,8 @@ scratch database ``--scratch-db``, builds one open comparison with 100 measureme
 points (5 devices × X, Y × 10 frequencies, linear bench) and ``--participants``
 participating laboratories (bulk_create), writes a results table with one row per
 participant and point (10,000 × 100 = 1,000,000 rows, values in full precision) and
-times ``manage.py import_results`` on it in a child process, whose peak RSS is read
-with ``resource.getrusage(RUSAGE_CHILDREN)``:
+times ``manage.py import_results`` on it in a child process, whose peak RSS is its own
+``VmHWM`` (``ru_maxrss`` survives ``execve``: it would start at this process's peak):
 
   (a) the import, stored                          target < 120 s
   (b) the same file again: a second version per participant
@@ -26,6 +26,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 from urllib.parse import urlsplit, urlunsplit
 
@@ -71,20 +72,23 @@ def setup_django(db_url: str) -> None:
     call_command("migrate", verbosity=0)
 
 
-def build_round(n_participants: int) -> list[str]:
-    """The comparison, its points and participants; returns the participant codes."""
+def build_round(
+    n_participants: int, *, code: str = CODE, frequencies: Sequence[int] = FREQUENCIES
+) -> list[str]:
+    """The comparison, its points (``DEVICES`` × ``AXES`` × ``frequencies``) and
+    participants; returns the participant codes."""
     from django.contrib.auth import get_user_model
 
     from labs.models import Laboratory, Participant
     from proficiency.models import Comparison, Device
     from proficiency.services import measurement_points_generate
 
-    comparison = Comparison.objects.create(code=CODE, title=CODE, status="open")
+    comparison = Comparison.objects.create(code=code, title=code, status="open")
     devices = Device.objects.bulk_create(
         Device(comparison=comparison, name=f"MEMS {i}") for i in range(1, DEVICES + 1)
     )
     measurement_points_generate(
-        comparison=comparison, devices=devices, axes=AXES, frequencies_hz=FREQUENCIES,
+        comparison=comparison, devices=devices, axes=AXES, frequencies_hz=list(frequencies),
         benches=["linear"],
     )  # fmt: skip
     labs = Laboratory.objects.bulk_create(
@@ -100,11 +104,14 @@ def build_round(n_participants: int) -> list[str]:
     return codes
 
 
-def write_file(path: Path, codes: list[str], *, broken_last: bool = False) -> np.ndarray:
+def write_file(
+    path: Path, codes: list[str], *, broken_last: bool = False,
+    frequencies: Sequence[int] = FREQUENCIES,
+) -> np.ndarray:  # fmt: skip
     """One row per participant and point, participant by participant; the sensitivities.
     ``broken_last``: the last row's uncertainty is -3 (the import must store nothing)."""
     rng = np.random.default_rng(13528)
-    points = [(d, a, f) for d in range(1, DEVICES + 1) for a in AXES for f in FREQUENCIES]
+    points = [(d, a, f) for d in range(1, DEVICES + 1) for a in AXES for f in frequencies]
     values = 415 + rng.normal(0, 2, (len(codes), len(points)))
     uncertainties = values * rng.uniform(0.01, 0.03, values.shape)
     if broken_last:
@@ -119,23 +126,29 @@ def write_file(path: Path, codes: list[str], *, broken_last: bool = False) -> np
     return values
 
 
-#: Runs the command in the child and reports the child's own peak RSS on stderr.
+#: Runs the command in the child and reports the child's own peak RSS on stderr
+#: (``VmHWM`` on Linux; ``ru_maxrss`` elsewhere, which includes the parent's peak).
 CHILD = """
 import resource, runpy, sys
 sys.argv = ["manage.py", "import_results", *sys.argv[1:]]
 try:
     runpy.run_path("manage.py", run_name="__main__")
 finally:
-    print("peak-rss-kib", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)
+    try:
+        with open("/proc/self/status") as status:
+            peak = next(int(x.split()[1]) for x in status if x.startswith("VmHWM:"))
+    except OSError:
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    print("peak-rss-kib", peak, file=sys.stderr)
 """
 
 
-def run_import(db_url: str, path: Path) -> tuple[float, float, int, str]:
+def run_import(db_url: str, path: Path, code: str = CODE) -> tuple[float, float, int, str]:
     """``manage.py import_results`` in a child: wall seconds, its peak RSS (MiB), status,
     output."""
     started = time.perf_counter()
     done = subprocess.run(
-        [sys.executable, "-c", CHILD, CODE, str(path), "--user", "bench-coordinator"],
+        [sys.executable, "-c", CHILD, code, str(path), "--user", "bench-coordinator"],
         cwd=ROOT, env=child_env(db_url), capture_output=True, text=True, check=False,
     )  # fmt: skip
     seconds = time.perf_counter() - started

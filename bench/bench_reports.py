@@ -9,8 +9,9 @@ comparisons with accepted results, analyses them in-process, then times:
     ``report_issue`` in this process, cold (fresh process caches) and again;
 (b) participant reports of ``BENCH-P`` (``--participants`` x ``--p-points``, default
     1,000 x 5): per report in this process, then through Redis with one and with two
-    Celery worker processes (``-P solo`` each), the fan-out task issuing
-    ``--worker-reports`` reports (default: all, summary included).
+    Celery worker processes (``-P solo`` each): the summary task and one batch task per
+    ``--batch`` participants (default 25, as publication fans them out; 0: one task per
+    report), ``--one-worker`` / ``--two-workers`` reports (0: all, summary included).
 
     DATABASE_URL=postgres://postgres@127.0.0.1:5432/h6 CELERY_BROKER_URL=redis://127.0.0.1:6379/6 \\
         .venv/bin/python bench/bench_reports.py [--quick]
@@ -24,7 +25,6 @@ import argparse
 import hashlib
 import io
 import os
-import resource
 import shutil
 import statistics
 import subprocess
@@ -173,41 +173,77 @@ def start_workers(n: int, queue: str) -> list[subprocess.Popen]:
     return workers
 
 
+def proc_cpu(pid: int) -> float:
+    """CPU seconds (user + system) of a running process, from /proc."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def sched(pid: int) -> tuple[float, float]:
+    """Seconds on a CPU and seconds runnable but waiting for one (the scheduler's run
+    queue: other jobs held the cores) of a process's main thread, which runs the tasks
+    of a ``-P solo`` worker (/proc/<pid>/schedstat)."""
+    on_cpu, waiting, _ = Path(f"/proc/{pid}/schedstat").read_text().split()
+    return int(on_cpu) / 1e9, int(waiting) / 1e9
+
+
 def issue_with_workers(
-    comparison_id: int, n_workers: int, limit: int | None
-) -> tuple[float, int, float]:
+    comparison_id: int, n_workers: int, limit: int | None, batch: int, summary: bool = True
+) -> tuple[float, int, float, tuple[float, float]]:
     """Wall seconds from enqueueing the jobs until every report row exists, the number of
-    reports, and the workers' CPU seconds (start-up included; the machine may be shared,
-    so CPU time is the figure that does not depend on other jobs)."""
+    reports, the workers' CPU seconds over that time (read from /proc: start-up not
+    included) and the load average (1 min) before and after; ``summary`` False: the
+    participant reports only.  ``batch`` > 0: the summary
+    task then one ``report_issue_batch_task`` per ``batch`` participants, as publication
+    fans them out; 0: one ``report_issue_task`` per report (the fan-out before issue 9).
+    The machine may be shared: the workers' CPU-busy fraction, CPU / (wall x workers),
+    is the figure that depends least on the other jobs."""
     from analysis.models import Report
-    from analysis.reports.services import report_jobs
-    from analysis.reports.tasks import report_issue_task
+    from analysis.reports.services import report_batches, report_jobs
+    from analysis.reports.tasks import report_issue_batch_task, report_issue_task
     from proficiency.celery import app
     from proficiency.models import Comparison
 
     clear_reports(comparison_id)
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    comparison = Comparison.objects.get(pk=comparison_id)
+    jobs = report_jobs(comparison)[0 if summary else 1 :][:limit]
+    run_id, batches = report_batches(comparison, batch or 1)  # also refreshes planner stats
+    ids = [pk for b in batches for pk in b][: len(jobs) - summary]
     queue = f"bench-reports-{uuid.uuid4().hex[:6]}"
     app.conf.task_default_queue = queue
-    jobs = report_jobs(Comparison.objects.get(pk=comparison_id))[:limit]
     workers = start_workers(n_workers, queue)
     try:
+        load0 = os.getloadavg()[0]
+        cpu0 = sum(proc_cpu(w.pid) for w in workers)
+        sched0 = [sched(w.pid) for w in workers]
         t0 = time.perf_counter()
-        for job in jobs:
-            report_issue_task.apply_async(job, queue=queue)
+        if batch:
+            if summary:
+                report_issue_task.apply_async(jobs[0], queue=queue)
+            for i in range(0, len(ids), batch):
+                report_issue_batch_task.apply_async((run_id, ids[i : i + batch]), queue=queue)
+        else:
+            for job in jobs:
+                report_issue_task.apply_async(job, queue=queue)
         while Report.objects.filter(comparison_id=comparison_id).count() < len(jobs):
             if any(w.poll() is not None for w in workers):
                 raise SystemExit("a worker died")
             time.sleep(0.2)
         wall = time.perf_counter() - t0
+        cpu = sum(proc_cpu(w.pid) for w in workers) - cpu0
+        load1 = os.getloadavg()[0]
+        sched1 = [sched(w.pid) for w in workers]
+        for i, (a, b) in enumerate(zip(sched0, sched1, strict=True)):
+            run, queued = b[0] - a[0], b[1] - a[1]
+            print(f"      worker {i}: on CPU {run / wall:.0%}, runnable waiting for a core "
+                  f"{queued / wall:.0%}, blocked (database, broker, files) "
+                  f"{1 - (run + queued) / wall:.0%} of {wall:.1f} s", flush=True)  # fmt: skip
     finally:
         for w in workers:
             w.terminate()
         for w in workers:
             w.wait(timeout=60)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime
-    return wall, len(jobs), cpu
+    return wall, len(jobs), cpu, (load0, load1)
 
 
 def main() -> None:
@@ -219,6 +255,10 @@ def main() -> None:
     ap.add_argument("--in-process", type=int, default=20, help="participant reports timed here")
     ap.add_argument("--one-worker", type=int, default=100, help="reports on one worker")
     ap.add_argument("--two-workers", type=int, default=0, help="reports on two (0: all)")
+    ap.add_argument(
+        "--batch", type=int, default=25, help="participants per worker task (0: one per report)"
+    )
+    ap.add_argument("--skip-summary", action="store_true", help="skip (a)")
     ap.add_argument("--quick", action="store_true", help="small sizes, a smoke test")
     args = ap.parse_args()
     if args.quick:
@@ -243,12 +283,13 @@ def run(args: argparse.Namespace) -> None:
     analyse_and_publish(p_id)
     print(f"generated and analysed in {time.perf_counter() - t0:.1f} s", flush=True)
 
-    times, size, pages = time_summary(s_id)
-    verdict = "PASS" if times[0] < 10 else "FAIL"
-    print(f"(a) summary {args.labs} labs x {args.points} points: cold {times[0]:.2f} s "
-          f"(CPU {times[1]:.2f} s), again {times[2]:.2f} s (CPU {times[3]:.2f} s); "
-          f"{pages} pages, {size / 1e6:.2f} MB, byte-identical when reissued "
-          f"(target < 10 s: {verdict})", flush=True)  # fmt: skip
+    if not args.skip_summary:
+        times, size, pages = time_summary(s_id)
+        verdict = "PASS" if times[0] < 10 else "FAIL"
+        print(f"(a) summary {args.labs} labs x {args.points} points: cold {times[0]:.2f} s "
+              f"(CPU {times[1]:.2f} s), again {times[2]:.2f} s (CPU {times[3]:.2f} s); "
+              f"{pages} pages, {size / 1e6:.2f} MB, byte-identical when reissued "
+              f"(target < 10 s: {verdict})", flush=True)  # fmt: skip
 
     per = time_participants_in_process(p_id, args.in_process)
     steady = statistics.median(per[1:]) if len(per) > 1 else per[0]
@@ -256,16 +297,21 @@ def run(args: argparse.Namespace) -> None:
           f"points, in process, CPU time: first {per[0]:.2f} s, median of the next {len(per) - 1}: "
           f"{steady:.3f} s", flush=True)  # fmt: skip
 
-    one, n1, cpu1 = issue_with_workers(p_id, 1, args.one_worker)
-    print(f"    one worker: {n1} reports in {one:.1f} s ({one / n1:.3f} s each), worker CPU "
-          f"{cpu1:.1f} s ({cpu1 / n1:.3f} s each)", flush=True)  # fmt: skip
-    two, n2, cpu2 = issue_with_workers(p_id, 2, args.two_workers or None)
+    one, n1, cpu1, load = issue_with_workers(p_id, 1, args.one_worker, args.batch)
+    print(f"    one worker (batches of {args.batch}): {n1} reports in {one:.1f} s "
+          f"({one / n1:.3f} s each), worker CPU {cpu1:.1f} s ({cpu1 / n1:.3f} s each), "
+          f"CPU-busy {cpu1 / one:.0%}; load {load[0]:.1f} -> {load[1]:.1f}",
+          flush=True)  # fmt: skip
+    two, n2, cpu2, load = issue_with_workers(p_id, 2, args.two_workers or None, args.batch)
     total = two * (args.participants + 1) / n2
     verdict = "PASS" if total < 300 else "FAIL"
     print(
-        f"    two workers: {n2} reports in {two:.1f} s ({two / n2:.3f} s each), worker CPU "
-        f"{cpu2:.1f} s; {args.participants + 1} reports: {total:.0f} s wall (target "
-        f"< 300 s: {verdict}); CPU / 2 cores: {cpu2 / 2 * (args.participants + 1) / n2:.0f} s"
+        f"    two workers (batches of {args.batch}): {n2} reports in {two:.1f} s "
+        f"({two / n2:.3f} s each; {(n2 / two) / (n1 / one):.2f}x one worker's rate), worker CPU "
+        f"{cpu2:.1f} s, CPU-busy {cpu2 / two / 2:.0%} per worker; load {load[0]:.1f} -> "
+        f"{load[1]:.1f}; {args.participants + 1} reports: {total:.0f} s wall (target "
+        f"< 300 s: {verdict})",
+        flush=True,
     )
     check_determinism(p_id)
 
