@@ -313,7 +313,7 @@ def _spread_table(data: ReportData) -> list[Flowable]:
 def _result_table(
     data: ReportData, rows: Sequence[ResultRow], scores: dict[tuple[int, str], ScoreRow]
 ) -> Table:
-    out = [["Point", "Lab", "Value", "U", "k", "D", "En", "ζ", "z / z′", "Flag"]]
+    out = [list(RESULT_HEAD)]
     own: list[int] = []
     bad: list[tuple[int, int]] = []
     last = -1
@@ -322,19 +322,12 @@ def _result_table(
         label = data.points[r.point].label if r.point != last else ""
         last = r.point
         out.append(
-            [
-                label,
-                r.lab,
-                f"{r.value:.6g}",
-                f"{r.expanded_uncertainty:.3g}",
-                f"{r.coverage_factor:g}",
-                num(s.d if s else None, "+.4g"),
-                num(s.en if s else None, ".2f"),
-                num(s.zeta if s else None, ".2f"),
-                num(s.z if s else None, ".2f"),
-                s.flag if s else "–",
-            ]
-        )
+            result_cells(
+                label, r.lab, r.value, r.expanded_uncertainty, r.coverage_factor,
+                s.d if s else None, s.en if s else None, s.zeta if s else None,
+                s.z if s else None, s.flag if s else "–",
+            )
+        )  # fmt: skip
         if r.lab == data.own_code:
             own.append(len(out) - 1)
         if s and abs(s.en) > data.en_limit:
@@ -343,6 +336,17 @@ def _result_table(
 
 
 RESULT_HEAD = ["Point", "Lab", "Value", "U", "k", "D", "En", "ζ", "z / z′", "Flag"]
+
+
+def result_cells(
+    label: str, lab: str, value: float, big_u: float, k: float,
+    d: float | None, en: float | None, zeta: float | None, z: float | None, flag: str,
+) -> list[str]:  # fmt: skip
+    """One row of the results table (both the one-table and the page-by-page listing)."""
+    return [label, lab, f"{value:.6g}", f"{big_u:.3g}", f"{k:g}", num(d, "+.4g"),
+            num(en, ".2f"), num(zeta, ".2f"), num(z, ".2f"), flag]  # fmt: skip
+
+
 RESULT_WIDTHS = [
     42 * mm,
     14 * mm,
@@ -408,20 +412,12 @@ class ListingTable(Flowable):
             strict=True,
         )  # fmt: skip
         for n, (point, lab, x, big_u, k, d, en, zeta, z, flag) in enumerate(columns, start=1):
+            label = data.points[point].label if point != last else ""
+            no_z = z != z  # NaN: no z
             out.append(
-                [
-                    data.points[point].label if point != last else "",
-                    labs[lab],
-                    f"{x:.6g}",
-                    f"{big_u:.3g}",
-                    f"{k:g}",
-                    f"{d:+.4g}",
-                    f"{en:.2f}",
-                    f"{zeta:.2f}",
-                    "–" if z != z else f"{z:.2f}",  # NaN: no z
-                    flags[flag],
-                ]
-            )
+                result_cells(label, labs[lab], x, big_u, k, d, en, zeta, None if no_z else z,
+                             flags[flag])
+            )  # fmt: skip
             last = point
             if abs(en) > limit:
                 bad.append((n, 6))
