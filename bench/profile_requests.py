@@ -38,6 +38,7 @@ def main() -> None:
     parser.add_argument("--root", default=str(Path(__file__).resolve().parent.parent))
     parser.add_argument("-n", type=int, default=300, help="requests per endpoint (POST: n/10)")
     parser.add_argument("--profile", choices=ENDPOINTS, help="cProfile this endpoint")
+    parser.add_argument("--sql", choices=ENDPOINTS, help="print the SQL of one such request")
     args = parser.parse_args()
     args.endpoints = args.endpoints or list(ENDPOINTS)
     if unknown := set(args.endpoints) - set(ENDPOINTS):
@@ -100,11 +101,20 @@ def main() -> None:
         n = args.n if paths[name][0] == "GET" else max(args.n // 10, 10)
         for i in range(5):
             request(name, i)
-        start = time.process_time()
+        start, db_start = time.process_time(), backend_cpu()
         for i in range(n):
             request(name, i)
         cpu = (time.process_time() - start) / n * 1000
-        print(f"{name:12s} {cpu:6.2f} ms CPU per request ({n} requests)", flush=True)
+        db = "" if db_start is None else f", database {(backend_cpu() - db_start) / n * 1e3:5.2f} ms"
+        print(f"{name:12s} {cpu:6.2f} ms CPU per request{db} ({n} requests)", flush=True)
+    if args.sql:
+        from django.db import connection
+        from django.test.utils import CaptureQueriesContext
+
+        with CaptureQueriesContext(connection) as queries:
+            request(args.sql, 0)
+        for i, query in enumerate(queries.captured_queries, 1):
+            print(f"{i:3d} {query['time']}s {query['sql']}")
     if args.profile:
         profile = cProfile.Profile(time.process_time)
         profile.enable()
@@ -112,6 +122,22 @@ def main() -> None:
             request(args.profile, i)
         profile.disable()
         pstats.Stats(profile).sort_stats("cumulative").print_stats(60)
+
+
+def backend_cpu() -> float | None:
+    """CPU seconds of this process's PostgreSQL backend (same machine), or None."""
+    from django.db import connection
+
+    if connection.vendor != "postgresql":
+        return None
+    with connection.cursor() as cursor:
+        cursor.execute("SELECT pg_backend_pid()")
+        pid = cursor.fetchone()[0]
+    try:
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
 if __name__ == "__main__":

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 from django.contrib.auth.models import AbstractBaseUser, AnonymousUser
 from django.db.models import Count, Max, OuterRef, QuerySet, Subquery
 
@@ -94,16 +96,38 @@ def comparison_points(comparison: Comparison) -> dict[PointKey, MeasurementPoint
     }
 
 
-def table_context(comparison: Comparison) -> TableContext:
-    """What a results table for this comparison may contain (importer rules per comparison).
+@dataclass(frozen=True)
+class ComparisonTable:
+    """What a results table of one comparison may contain (``context``, the importer's
+    rules) and the id of each of its measurement points by key (``point_ids``)."""
 
-    Built from plain tuples (no model instance per point): 100,000 points in well under
-    a second."""
-    units = dict(comparison.devices.values_list("name", "unit"))
-    keys = comparison.measurement_points.order_by(
+    context: TableContext
+    point_ids: dict[PointKey, int]
+
+
+def comparison_table(comparison: Comparison) -> ComparisonTable:
+    """The comparison's :class:`ComparisonTable`, from one query of plain tuples (no model
+    instance per point): 100,000 points in well under a second."""
+    rows = comparison.measurement_points.order_by(
         "device__name", "bench", "direction", "axis", "frequency_hz", "pk"
-    ).values_list("device__name", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2")
-    return TableContext.from_points([PointKey(*k) for k in keys], device_units=units)
+    ).values_list(
+        "pk", "device__name", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2",
+        "device__unit",
+    )  # fmt: skip
+    keys: list[PointKey] = []
+    units: dict[str, str] = {}
+    point_ids: dict[PointKey, int] = {}
+    for pk, *fields, unit in rows:
+        key = PointKey(*fields)
+        keys.append(key)
+        units[key.device] = unit
+        point_ids[key] = pk
+    return ComparisonTable(TableContext.from_points(keys, device_units=units), point_ids)
+
+
+def table_context(comparison: Comparison) -> TableContext:
+    """What a results table for this comparison may contain (importer rules per comparison)."""
+    return comparison_table(comparison).context
 
 
 def user_laboratories(user: AbstractBaseUser | AnonymousUser) -> QuerySet[Laboratory]:

@@ -14,13 +14,12 @@ from labs.importers import (
     ImportErrors,
     PointKey,
     ResultRow,
-    TableContext,
     missing_points,
     parse_rows,
     parse_table,
 )
 from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission
-from labs.selectors import table_context
+from labs.selectors import ComparisonTable, comparison_table
 from proficiency.errors import InvalidTransition, StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus
 
@@ -105,11 +104,6 @@ def submission_transition(*, submission: Submission, to: str, message: str = "")
     return locked
 
 
-def submission_next_version(*, participant: Participant) -> int:
-    last = participant.submissions.order_by("-version").values_list("version", flat=True).first()
-    return (last or 0) + 1
-
-
 def submission_window_check(comparison: Comparison) -> None:
     """StateConflict (409) unless the comparison is open and its deadline has not passed."""
     if comparison.status != ComparisonStatus.OPEN:
@@ -150,55 +144,61 @@ def submission_save(
     source: str,
     user: AbstractBaseUser | None,
     submit: bool,
+    table: ComparisonTable | None = None,
 ) -> Submission:
     """Store a participant's results, all or nothing (the one path for grid, upload and API).
 
-    ``rows`` come from the importer (validated against :func:`table_context`).
-    Saving a draft replaces the participant's open draft, if any; submitting
-    needs a result for every measurement point and makes the draft (or a new
-    version) ``submitted``.  Decided versions are never touched: a correction
-    is a new version.  The participant row is locked so versions never collide.
+    ``rows`` come from the importer, validated against ``table`` (the comparison's
+    :func:`comparison_table`: read here when not given; the points of an open comparison
+    do not change).  Saving a draft replaces the participant's open draft, if any;
+    submitting needs a result for every measurement point and makes the draft (or a new
+    version) ``submitted``.  Decided versions are never touched: a correction is a new
+    version.  The participant row is locked so versions never collide.
     """
     Participant.objects.select_for_update().get(pk=participant.pk)
     comparison = participant.comparison
     submission_window_check(comparison)
-    # Point ids by key from one values() query: no model instance per point.
-    fields = ("device__name", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2")
-    point_ids = {
-        PointKey(*key): pk
-        for pk, *key in comparison.measurement_points.values_list("pk", *fields).iterator(
-            chunk_size=10_000
-        )
-    }
-    context = TableContext.from_points(point_ids)
-    if submit and (missing := missing_points(rows, context)):
+    table = table or comparison_table(comparison)
+    if submit and (missing := missing_points(rows, table.context)):
         raise _missing_error(missing)
-    draft = participant.submissions.filter(status=St.DRAFT).order_by("-version").first()
-    if draft is None:
-        draft = Submission.objects.create(
-            participant=participant,
-            version=submission_next_version(participant=participant),
-            source=source,
-            submitted_by=user,
-        )
-    else:
-        draft.results.all().delete()
+    # the open draft is always the latest version: a new version is made only when there
+    # is none, and a draft only ever becomes submitted
+    latest = participant.submissions.order_by("-version").first()
+    if latest is not None and latest.status == St.DRAFT:
+        draft = latest
+        # a draft's results are never scored (only accepted versions are analysed): one
+        # DELETE, without the collector reading every row to look for scores
+        _results_delete(draft)
         draft.source, draft.submitted_by = source, user
         draft.save(update_fields=["source", "submitted_by"])
-    n_results = _results(draft, rows, context, point_ids)
-    saved = submission_transition(submission=draft, to=St.SUBMITTED) if submit else draft
+        n_results = _results(draft, rows, table)
+        saved = submission_transition(submission=draft, to=St.SUBMITTED) if submit else draft
+    else:
+        # a new version is stored submitted at once when submitted (no draft step)
+        saved = Submission.objects.create(
+            participant=participant,
+            version=(latest.version if latest else 0) + 1,
+            source=source,
+            submitted_by=user,
+            status=St.SUBMITTED if submit else St.DRAFT,
+            submitted_at=timezone.now() if submit else None,
+        )
+        n_results = _results(saved, rows, table)
     # the version's result count, as the history annotates it (the API's n_results): the
     # rows just stored are all its results (a draft's earlier ones were deleted above)
     saved.n_results = n_results  # type: ignore[attr-defined]
     return saved
 
 
-def _results(
-    submission: Submission,
-    rows: list[ResultRow],
-    context: TableContext,
-    point_ids: dict[PointKey, int],
-) -> int:
+def _results_delete(submission: Submission) -> None:
+    connection = connections[router.db_for_write(Result)]
+    table = connection.ops.quote_name(Result._meta.db_table)
+    column = connection.ops.quote_name(Result._meta.get_field("submission").column)
+    with connection.cursor() as cursor:
+        cursor.execute(f"DELETE FROM {table} WHERE {column} = %s", [submission.pk])
+
+
+def _results(submission: Submission, rows: list[ResultRow], table: ComparisonTable) -> int:
     """Insert one :class:`Result` per row, on the one measurement point it fits; the count.
 
     One ``COPY`` on PostgreSQL, one ``executemany`` elsewhere: 100,000 model instances
@@ -208,16 +208,17 @@ def _results(
     values = []
     for row in rows:
         # The importer already refused a row fitting no point or several: never store a guess.
-        matches = context.matching_points(row)
+        matches = table.context.matching_points(row)
         if len(matches) != 1:
             raise ValidationFailed(
                 f"row {row.row} does not identify one measurement point of this comparison",
                 errors=[{"row": row.row, "field": None, "message": "unknown measurement point"}],
             )
-        point_id, big_u, k = point_ids[matches[0]], row.expanded_uncertainty, row.coverage_factor
+        point_id = table.point_ids[matches[0]]
         values.append(
-            (submission.pk, point_id, row.sensitivity, row.unit, big_u, k, row.dof, row.note)
-        )
+            (submission.pk, point_id, row.sensitivity, row.unit, row.expanded_uncertainty,
+             row.coverage_factor, row.dof, row.note)
+        )  # fmt: skip
     return results_insert(values)
 
 
@@ -269,18 +270,15 @@ def submission_from_file(
     submit: bool,
 ) -> Submission:
     """A CSV/XLSX upload (formats.md §1): parse against the comparison, then save."""
+    table = comparison_table(participant.comparison)
     try:
-        rows = parse_table(
-            data,
-            filename=filename,
-            lab_column="forbidden",
-            context=table_context(participant.comparison),
-        )
+        rows = parse_table(data, filename=filename, lab_column="forbidden", context=table.context)
     except ImportErrors as exc:
         raise _import_failed(exc) from None
     return submission_save(
-        participant=participant, rows=rows, source=Submission.Source.FILE, user=user, submit=submit
-    )
+        participant=participant, rows=rows, source=Submission.Source.FILE, user=user,
+        submit=submit, table=table,
+    )  # fmt: skip
 
 
 def submission_from_records(
@@ -292,14 +290,13 @@ def submission_from_records(
     submit: bool,
 ) -> Submission:
     """JSON rows from the API or the web grid: same rules as a file."""
+    table = comparison_table(participant.comparison)
     try:
-        rows = parse_rows(
-            records, lab_column="forbidden", context=table_context(participant.comparison)
-        )
+        rows = parse_rows(records, lab_column="forbidden", context=table.context)
     except ImportErrors as exc:
         raise _import_failed(exc) from None
     return submission_save(
-        participant=participant, rows=rows, source=source, user=user, submit=submit
+        participant=participant, rows=rows, source=source, user=user, submit=submit, table=table
     )
 
 

@@ -2,12 +2,16 @@
 answer in a fixed, small number of queries, whatever the number of rows behind them."""
 
 import pytest
+from auditlog.models import LogEntry
 from django.db import connection
 from django.test.utils import CaptureQueriesContext
 
-from labs.models import LabAPIKey
+from labs.models import LabAPIKey, Submission
+from tests.labs.api import rows
 
 pytestmark = pytest.mark.django_db
+
+SUBMIT = "/api/v1/comparisons/IMU-A-01/submissions/"
 
 
 def test_key_lookup_brings_its_laboratory_in_the_same_query(world):
@@ -50,3 +54,65 @@ def test_lab_polling_endpoints_query_count(world, path, expected):
     assert n == expected, "\n".join(sql)
     # the laboratory is never fetched on its own (it comes with the key)
     assert not any(s.startswith('SELECT "labs_laboratory"') for s in sql)
+
+
+def _statements(ctx: CaptureQueriesContext) -> list[str]:
+    """The captured SQL without transaction control (BEGIN, SAVEPOINT, COMMIT: the
+    databases differ) and without the result rows' insert (COPY on PostgreSQL is not
+    captured, SQLite's executemany is)."""
+    control = ("BEGIN", "SAVEPOINT", "RELEASE", "COMMIT")
+    return [
+        q["sql"]
+        for q in ctx.captured_queries
+        if not q["sql"].startswith(control) and 'INSERT INTO "labs_result"' not in q["sql"]
+    ]
+
+
+def test_submission_post_query_count(world):
+    """A new submitted version: key + laboratory, participant + comparison, the points
+    (once, for the importer and for storing), the participant lock, the latest version,
+    the new version stored submitted at once with its one audit entry."""
+    client = world.client("key_a")
+    with CaptureQueriesContext(connection) as ctx:
+        response = client.post(SUBMIT, {"results": rows()}, format="json")
+    assert response.status_code == 201, response.content
+    body = response.json()
+    assert (body["status"], body["n_results"]) == ("submitted", len(rows()))
+    sql = _statements(ctx)
+    assert len(sql) == 7, "\n".join(sql)
+    assert sum('FROM "proficiency_measurementpoint"' in s for s in sql) == 1
+    assert not any(s.startswith("UPDATE") for s in sql)  # no draft step, no second save
+    submission = Submission.objects.get(
+        participant__laboratory=world.lab_a, version=body["version"]
+    )
+    assert submission.results.count() == len(rows())
+    entries = LogEntry.objects.get_for_object(submission)
+    assert [(e.action, e.changes_dict["status"][1]) for e in entries] == [
+        (LogEntry.Action.CREATE, "submitted")
+    ]
+
+
+def test_draft_replaced_then_submitted_keeps_no_old_rows(world):
+    """A draft's rows are deleted with one statement when it is replaced; the draft then
+    becomes the submitted version (same version number, audit: create, update)."""
+    client = world.client("key_a")
+    first = client.post(SUBMIT, {"results": rows(axes=("X",)), "submit": False}, format="json")
+    draft = Submission.objects.get(
+        participant__laboratory=world.lab_a, version=first.json()["version"]
+    )
+    with CaptureQueriesContext(connection) as ctx:
+        final = client.post(SUBMIT, {"results": rows()}, format="json")
+    assert (final.status_code, final.json()["version"]) == (201, draft.version)
+    sql = _statements(ctx)
+    deletes = [s for s in sql if s.startswith("DELETE")]
+    # no collector: the old rows and their (impossible) scores are not read first
+    assert not any(
+        'FROM "labs_result"' in s or "analysis_score" in s for s in sql if s.startswith("SELECT")
+    )
+    assert len(deletes) == 1 and deletes[0].startswith('DELETE FROM "labs_result"'), deletes
+    draft.refresh_from_db()
+    assert draft.status == Submission.Status.SUBMITTED
+    assert draft.results.count() == len(rows())
+    assert set(draft.results.values_list("measurement_point__axis", flat=True)) == {
+        p.axis for p in world.cmp.measurement_points.all()
+    }
