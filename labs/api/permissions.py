@@ -95,19 +95,17 @@ def measurement_points(comparison: Comparison) -> QuerySet[MeasurementPoint]:
     )
 
 
-def submissions_in_scope(access: ComparisonAccess) -> QuerySet[Submission]:
-    """Coordinators: every participant's versions; participants: their own."""
+def submissions_in_scope(access: ComparisonAccess, *, counted: bool = True) -> QuerySet[Submission]:
+    """Coordinators: every participant's versions; participants: their own; with their
+    result count (``n_results``) unless ``counted`` is false."""
     if access.is_coordinator:
         found = Submission.objects.filter(participant__comparison=access.comparison)
     elif access.participant is not None:
         found = Submission.objects.filter(participant=access.participant)
     else:  # pragma: no cover - comparison_access never grants neither role
         found = Submission.objects.none()
-    return (
-        found.select_related("participant")
-        .annotate(n_results=Count("results"))
-        .order_by("participant__code", "-version")
-    )
+    found = found.select_related("participant").order_by("participant__code", "-version")
+    return found.annotate(n_results=Count("results")) if counted else found
 
 
 def submission_in_scope(
@@ -121,8 +119,9 @@ def submission_in_scope(
                 errors=[{"row": None, "field": "participant", "message": "is required"}],
             )
         participant_code = access.participant.code
-    found = submissions_in_scope(access).filter(participant__code=participant_code, version=version)
-    submission = found.first()
+    # not counted: the version's detail lists its results, whose number is n_results
+    found = submissions_in_scope(access, counted=False)
+    submission = found.filter(participant__code=participant_code, version=version).first()
     if submission is None:
         # The participant code is not echoed: the answer is the same whether it exists or not.
         raise NotVisible(f"No submission version {version} of that participant is visible to you.")

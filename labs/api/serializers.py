@@ -287,9 +287,6 @@ SUBMISSION_DETAIL = ValuesRendering(SubmissionDetailSerializer, computed=("n_res
 def submission_detail_data(submission: Submission, results: Any) -> dict[str, Any]:
     """``SubmissionDetailSerializer(submission, context={"results": results}).data``, the
     columns read without building the serializer's fields."""
-    methods = SubmissionDetailSerializer(context={"results": results})
-    return SUBMISSION_DETAIL.instance(
-        submission,
-        n_results=methods.get_n_results(submission),
-        results=methods.get_results(submission),
-    )
+    rows = SubmissionDetailSerializer(context={"results": results}).get_results(submission)
+    # the version's results are all listed: their number is its n_results
+    return SUBMISSION_DETAIL.instance(submission, n_results=len(rows), results=rows)
