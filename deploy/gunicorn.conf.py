@@ -4,10 +4,14 @@ Everything can be overridden from the environment: ``GUNICORN_BIND`` (default
 ``127.0.0.1:8000``; a reverse proxy terminates TLS in front), ``WEB_CONCURRENCY``
 (workers, default 2 × cores + 1, at least 2), ``GUNICORN_TIMEOUT`` (seconds),
 ``GUNICORN_MAX_REQUESTS`` (requests a worker serves before it is replaced, default 20000).
+Sync workers: gunicorn's ``gthread`` worker with keep-alive cost less CPU per request in
+the load test but pinned each client's connection to one worker, and its p95 latency was
+1.5-2x the sync workers' (bench/README.md, "Load test").
 Logs go to standard output as JSON lines (``LOG_FORMAT=plain`` for text), with
 the access log as key=value pairs inside ``message``.
 """
 
+import gc
 import multiprocessing
 import os
 
@@ -54,3 +58,10 @@ logconfig_dict = {
         "gunicorn.access": {"handlers": ["console"], "level": "INFO", "propagate": False},
     },
 }
+
+
+def post_worker_init(worker: object) -> None:
+    """The application is loaded: move what it allocated at start-up out of the
+    collector's reach (``gc.freeze``), so full collections walk only what requests make."""
+    gc.collect()
+    gc.freeze()

@@ -306,6 +306,21 @@ def test_gunicorn_config_has_at_least_two_workers_and_json_logs(monkeypatch):
     assert formatter == "proficiency.logs.JsonFormatter"
 
 
+def test_gunicorn_worker_freezes_what_start_up_allocated():
+    """After the application is loaded, start-up objects leave the cyclic collector's
+    generations (gc.freeze): full collections then walk only what requests allocate."""
+    import gc
+    import runpy
+
+    config = runpy.run_path(str(ROOT / "deploy" / "gunicorn.conf.py"))
+    before = gc.get_freeze_count()
+    try:
+        config["post_worker_init"](object())
+        assert gc.get_freeze_count() > before
+    finally:
+        gc.unfreeze()
+
+
 # --- beat: daily housekeeping -----------------------------------------------------------------
 
 
