@@ -105,7 +105,8 @@ def main() -> None:
         for i in range(n):
             request(name, i)
         cpu = (time.process_time() - start) / n * 1000
-        db = "" if db_start is None else f", database {(backend_cpu() - db_start) / n * 1e3:5.2f} ms"
+        db_end = backend_cpu()
+        db = "" if db_start is None else f", database {(db_end - db_start) / n * 1e3:5.2f} ms"
         print(f"{name:12s} {cpu:6.2f} ms CPU per request{db} ({n} requests)", flush=True)
     if args.sql:
         from django.db import connection
