@@ -7,6 +7,12 @@ process (``lru_cache``); the reader's own result is an :class:`Overlay` of vecto
 that the PDF draws over the shared raster.  Margins are fixed (no constrained
 layout), so the pixels depend on the data and the highlight only: a report renders
 byte-identically however many reports the process rendered before it.
+
+Above ``COLLECTED`` labs the error bars and the |En| bars are drawn as one collection
+each from float arrays, not as matplotlib's ``errorbar`` / ``bar`` (a masked array per
+bar, a ``Rectangle`` artist per bar and a "best" legend position tested against each):
+the same pixels (tests/analysis/reports/test_charts_many.py); for 10,000 labs the |En|
+chart takes ~0.45 s instead of ~11 s and a point chart ~0.25 s instead of ~0.45 s.
 """
 
 from __future__ import annotations
@@ -21,7 +27,10 @@ from typing import Any
 import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection, PolyCollection
 from matplotlib.figure import Figure
+from matplotlib.legend import Legend
+from matplotlib.path import Path
 
 matplotlib.use("Agg")
 
@@ -31,6 +40,7 @@ LAB = "#1f3a5f"
 BAND = "#9ec5fe"
 BAD = "#dc3545"
 LABELLED = 60  # above this many labs the x axis carries no codes (they would overlap)
+COLLECTED = LABELLED  # above this many labs the bars are drawn as one collection
 RC: dict[Any, Any] = {
     "font.family": "DejaVu Sans",
     "font.size": 8,
@@ -76,6 +86,101 @@ def _x_axis(ax: Any, labels: Sequence[str]) -> dict[str, float]:
     size = 8 if len(labels) <= 14 else (6 if len(labels) <= 40 else 4)
     ax.set_xticks(x, labels, rotation=90 if len(labels) > 14 else 0, fontsize=size)
     return {"bottom": 0.17 if len(labels) <= 14 else 0.28}
+
+
+@functools.lru_cache(maxsize=8)
+def _positions(labels: tuple[str, ...]) -> dict[str, int]:
+    """Each lab's x position; one dict shared by the charts of a round's points."""
+    return {label: i for i, label in enumerate(labels)}
+
+
+def _errorbars(ax: Any, y: np.ndarray, u: np.ndarray, *, ms: float, lw: float) -> None:
+    """``ax.errorbar(x, y, yerr=u, fmt="o", ms=ms, color=LAB, ecolor=LAB, capsize=0,
+    lw=lw)`` at x = 0, 1, ...: its marker line (zorder 2.1), its bars as one
+    ``LineCollection`` (zorder 2) and the same data limits, without a masked array per bar."""
+    x = np.arange(len(y), dtype=float)
+    ax.plot(x, y, "o", ms=ms, color=LAB, lw=lw, zorder=2.1, label="_nolegend_")
+    low, high = y - u, y + u
+    segments: Any = np.stack([np.stack([x, low], axis=1), np.stack([x, high], axis=1)], axis=1)
+    bars = _Segments(segments, colors=LAB, linewidths=lw, zorder=2, label="_nolegend_")
+    ax.add_collection(bars, autolim=False)
+    if len(x):
+        ax.update_datalim(((x.min(), np.nanmin(low)), (x.max(), np.nanmax(high))))
+        ax._request_autoscale_view()
+
+
+class _Segments(LineCollection):
+    """Straight segments given as one (n, 2, 2) float array, each one's ``Path`` as
+    ``Path(segment)`` makes it (the attributes of the first copied to the others) without
+    the per-segment checks: ~3 instead of ~15 µs a segment."""
+
+    def set_segments(self, segments: Any) -> None:
+        if segments is None or not len(segments) or isinstance(segments, np.ma.MaskedArray):
+            super().set_segments(segments)
+            return
+        first = Path(np.asarray(segments[0], float))
+        fast = Path._fast_from_codes_and_verts  # type: ignore[attr-defined]  # private, stable
+        self._paths = [fast(s, None, first) for s in segments]
+        self.stale = True
+
+
+def _bars(ax: Any, heights: np.ndarray, colours: Sequence[str], width: float) -> _BarBoxes:
+    """``ax.bar(x, heights, color=colours, width=width)`` at x = 0, 1, ... as one
+    ``PolyCollection``: the same rectangles (left = x − width/2, right = left + width, as
+    a ``Rectangle`` computes them), colours, data limits and sticky bottom edge."""
+    left = np.arange(len(heights), dtype=float) - width / 2
+    right, bottom = left + width, np.zeros(len(heights))
+    corners = np.stack([left, bottom, right, heights], axis=1)
+    verts: Any = corners[:, [[0, 1], [0, 3], [2, 3], [2, 1]]]
+    bars = PolyCollection(verts, facecolors=colours, edgecolors="none", linewidths=0)
+    bars.sticky_edges.y.append(0.0)
+    ax.add_collection(bars, autolim=True)
+    return _BarBoxes(bars, corners)
+
+
+@dataclass(frozen=True, eq=False)
+class _BarBoxes:
+    """A ``_bars`` collection and its rectangles (left, bottom, right, top), data units."""
+
+    collection: PolyCollection
+    corners: np.ndarray
+
+    def display_boxes(self, ax: Any) -> list[np.ndarray]:
+        """Each bar's box in display units, as ``Rectangle.get_bbox().transformed(
+        transData)`` gives it: x from the bottom corners, the top from the left corner."""
+        c, to_px = self.corners, ax.transData
+        low = to_px.transform(c[:, [0, 1]])
+        high_x = to_px.transform(c[:, [2, 1]])[:, 0]
+        high_y = to_px.transform(c[:, [0, 3]])[:, 1]
+        return list(np.stack([low, np.stack([high_x, high_y], axis=1)], axis=1))
+
+
+class _BarsLegend(Legend):
+    """A legend whose "best" position counts each of the bars as a box, as it counts the
+    ``Rectangle`` of each bar that ``ax.bar`` adds (one vectorised overlap count), and not
+    as a path of a ``PolyCollection`` tested one by one (seconds for 10,000 bars)."""
+
+    bars: _BarBoxes
+
+    @classmethod
+    def add(cls, ax: Any, bars: _BarBoxes, **kwargs: Any) -> None:
+        """``ax.legend(**kwargs)`` with this class, set up as ``Axes.legend`` does."""
+        handles, labels = ax.get_legend_handles_labels()
+        legend = cls(ax, handles, labels, **kwargs)
+        legend.bars = bars
+        ax.legend_ = legend
+        legend._remove_method = ax._remove_legend  # type: ignore[attr-defined]
+
+    def _auto_legend_data(self, renderer: Any) -> tuple[list[Any], list[Any], list[Any]]:
+        """matplotlib's hit-test data without the bars' collection, plus the bars' boxes."""
+        ax: Any = self.parent
+        children = ax._children
+        ax._children = [c for c in children if c is not self.bars.collection]
+        try:
+            bboxes, lines, offsets = super()._auto_legend_data(renderer)  # type: ignore[misc]
+        finally:
+            ax._children = children
+        return [*bboxes, *self.bars.display_boxes(ax)], lines, offsets
 
 
 @dataclass(frozen=True)
@@ -128,7 +233,7 @@ class PointChart(Shared):
         title: str,
         unit: str,
     ) -> None:
-        self.index = {label: i for i, label in enumerate(labels)}
+        self.index = _positions(labels)
         self.values, self.expanded = values, expanded
         many = len(labels) > LABELLED
         self.style = (1.5, 0.6, 0) if many else (3, 1.0, 2)  # marker size, line width, cap
@@ -144,10 +249,14 @@ class PointChart(Shared):
             )
             ax.axhline(x_pt, color=LAB, lw=1, ls="--", label="x_pt")
             ms, lw, cap = self.style
-            ax.errorbar(
-                np.arange(len(labels)), values, yerr=expanded, fmt="o", ms=ms, color=LAB,
-                ecolor=LAB, capsize=cap, lw=lw,
-            )  # fmt: skip
+            if len(labels) > COLLECTED:
+                _errorbars(ax, np.asarray(values, dtype=float), np.asarray(expanded, dtype=float),
+                           ms=ms, lw=lw)  # fmt: skip
+            else:
+                ax.errorbar(
+                    np.arange(len(labels)), values, yerr=expanded, fmt="o", ms=ms, color=LAB,
+                    ecolor=LAB, capsize=cap, lw=lw,
+                )  # fmt: skip
             self.fig.subplots_adjust(**_x_axis(ax, labels))
             ax.set_ylabel(f"Sensitivity ({unit})")
             ax.ticklabel_format(axis="y", useOffset=False)
@@ -199,17 +308,25 @@ class EnChart(Shared):
     WIDTH = 0.6
 
     def __init__(self, labs: tuple[str, ...], max_en: tuple[float, ...], *, limit: float) -> None:
-        self.index = {lab: i for i, lab in enumerate(labs)}
+        self.index = _positions(labs)
         self.max_en = max_en
         with matplotlib.rc_context(RC):
             self.fig, self.ax = _figure(6.4, 2.4)
+            ax = self.ax
             colours = [BAD if e > limit else LAB for e in max_en]
-            self.ax.bar(np.arange(len(labs)), max_en, color=colours, width=self.WIDTH)
-            self.ax.axhline(limit, color=BAD, lw=1, ls="--", label=f"|En| = {limit:g}")
-            self.fig.subplots_adjust(**_x_axis(self.ax, labs))
-            self.ax.set_ylabel("largest |En|")
-            self.ax.set_title("Largest |En| per participant")
-            self.ax.legend(loc="best", fontsize=7, frameon=False)
+            many = len(labs) > COLLECTED
+            if many:
+                bars = _bars(ax, np.asarray(max_en, dtype=float), colours, self.WIDTH)
+            else:
+                ax.bar(np.arange(len(labs)), max_en, color=colours, width=self.WIDTH)
+            ax.axhline(limit, color=BAD, lw=1, ls="--", label=f"|En| = {limit:g}")
+            self.fig.subplots_adjust(**_x_axis(ax, labs))
+            ax.set_ylabel("largest |En|")
+            ax.set_title("Largest |En| per participant")
+            if many:
+                _BarsLegend.add(ax, bars, loc="best", fontsize=7, frameon=False)
+            else:
+                ax.legend(loc="best", fontsize=7, frameon=False)
         self._freeze()
 
     def overlay(self, highlight: str | None) -> Overlay | None:

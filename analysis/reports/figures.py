@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import copy
 import functools
+import weakref
 
 from reportlab import rl_config
 from reportlab.lib.colors import HexColor
@@ -18,7 +19,7 @@ from reportlab.platypus import Flowable, Paragraph
 
 from analysis.reports import charts
 from analysis.reports.charts import Overlay, Raster
-from analysis.reports.data import ReportData
+from analysis.reports.data import AssignedRow, ReportData, RoundStats
 from analysis.reports.styles import STYLES
 
 WIDTH = 170 * mm
@@ -26,12 +27,16 @@ WIDTH = 170 * mm
 
 @functools.lru_cache(maxsize=256)
 def _xobject(raster: Raster) -> PDFImageXObject:
-    """The XObject reportlab's ``drawImage`` would build from these pixels (same filters)."""
+    """The XObject reportlab's ``drawImage`` would build from these pixels (same filters).
+
+    The ASCII85 text is kept as the bytes the PDF writer would encode it to (ASCII85 is
+    ASCII, so the same bytes and length): encoding ~700 kB of chart text per report
+    through reportlab's pure-Python "extpdfdoc" codec took ~15 % of a report's CPU."""
     obj = PDFImageXObject(raster.name)
     obj.width, obj.height = raster.width, raster.height
     obj.bitsPerComponent, obj.colorSpace, obj.mask = 8, "DeviceRGB", None
     if rl_config.useA85:
-        obj.streamContent = asciiBase85Encode(raster.stream)
+        obj.streamContent = asciiBase85Encode(raster.stream).encode("ascii")
         obj._filters = ("ASCII85Decode", "FlateDecode")
     else:
         obj.streamContent = raster.stream
@@ -99,15 +104,33 @@ def figures(data: ReportData) -> list[Flowable]:
     return out
 
 
-def _point_charts(data: ReportData) -> list[Flowable]:
-    assigned = {a.point: a for a in data.assigned}
-    by_point = data.round.point_values
-    out: list[Flowable] = []
-    for index in data.chart_points:
-        p, a, rows = data.points[index], assigned.get(index), by_point.get(index)
-        if a is None or rows is None or not rows.labs:
-            continue
-        chart = charts.point_chart(
+# The charts of a round by its RoundStats (one object per run and process, shared by
+# every report of a large round): a report finds its charts without building the
+# round-sized tuples that key the ``charts`` caches (10,000 labs: ~10 ms a report).
+_ROUND_CHARTS: weakref.WeakKeyDictionary[RoundStats, dict[object, charts.Shared]] = (
+    weakref.WeakKeyDictionary()
+)
+
+
+def _round_charts(data: ReportData) -> dict[object, charts.Shared]:
+    return _ROUND_CHARTS.setdefault(data.round, {})
+
+
+def _point_chart(
+    data: ReportData, index: int, assigned: dict[int, AssignedRow]
+) -> charts.PointChart | None:
+    """The shared chart of point ``index``; None when it has no assigned value or result."""
+    p, a = data.points[index], assigned.get(index)
+    if a is None:
+        return None
+    key = ("point", index, a.value, a.standard_uncertainty, p.full_label, p.unit)
+    found = _round_charts(data)
+    chart = found.get(key)
+    if chart is None:
+        rows = data.round.point_values.get(index)
+        if rows is None or not rows.labs:
+            return None
+        chart = found[key] = charts.point_chart(
             rows.labs,
             rows.values,
             rows.uncertainties,
@@ -116,16 +139,40 @@ def _point_charts(data: ReportData) -> list[Flowable]:
             title=p.full_label,
             unit=p.unit,
         )
-        out.append(RasterImage(chart.raster, chart.overlay(data.own_code)))
+    assert isinstance(chart, charts.PointChart)
+    return chart
+
+
+def _point_charts(data: ReportData) -> list[Flowable]:
+    out: list[Flowable] = []
+    assigned = {a.point: a for a in data.assigned}
+    for index in data.chart_points:
+        chart = _point_chart(data, index, assigned)
+        if chart is not None:
+            out.append(RasterImage(chart.raster, chart.overlay(data.own_code)))
     return out
+
+
+def point_charts_build(data: ReportData) -> int:
+    """Build the chart of every point of ``data``'s round now; the number built.  In a
+    large round each point is among some participant's worst, so every report process
+    needs them all: built together with the round's shared data (the batch's first
+    report), not one by one in whichever later reports need them."""
+    assigned = {a.point: a for a in data.assigned}
+    return sum(_point_chart(data, p.index, assigned) is not None for p in data.points)
 
 
 def _en_chart(data: ReportData) -> list[Flowable]:
     largest = data.round.largest_en
     if not largest:
         return []
-    labs = tuple(lab for lab, _ in largest)
-    chart = charts.en_chart(labs, tuple(en for _, en in largest), limit=data.en_limit)
+    found = _round_charts(data)
+    chart = found.get(("en", data.en_limit))
+    if chart is None:
+        labs = tuple(lab for lab, _ in largest)
+        chart = charts.en_chart(labs, tuple(en for _, en in largest), limit=data.en_limit)
+        found[("en", data.en_limit)] = chart
+    assert isinstance(chart, charts.EnChart)
     return [RasterImage(chart.raster, chart.overlay(data.own_code))]
 
 

@@ -5,15 +5,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 from html import escape
 
-from reportlab.lib import colors
 from reportlab.lib.units import mm
 from reportlab.platypus import Flowable, KeepTogether, Paragraph, Spacer, Table, TableStyle
 
 from analysis.reports import figures
 from analysis.reports.data import ReportData, ResultListing, ResultRow, ScoreRow
-from analysis.reports.styles import BAD_TEXT, BOLD, FONT, GRID, HEAD_BACKGROUND, OWN_BACKGROUND
+from analysis.reports.styles import GRID, HEAD_BACKGROUND, OWN_BACKGROUND
 from analysis.reports.styles import STYLES as S
-from analysis.reports.tables import FastTable
+from analysis.reports.tables import FastTable, cell_styles
 
 CONFIDENTIALITY = (
     "This report is confidential. Participants are identified by a code known only to "
@@ -53,21 +52,21 @@ def table(
     """A grid with a repeated dark header; the reader's own rows bold on a pink background.
 
     Cells are single-line strings, so every row has the same height; giving it saves
-    reportlab from measuring every remaining row again at each page break."""
-    t = FastTable(rows, colWidths=list(widths), rowHeights=[ROW_HEIGHT] * len(rows), repeatRows=1)
+    reportlab from measuring every remaining row again at each page break.  The cells'
+    styles are given, one object per look (:func:`~analysis.reports.tables.cell_styles`),
+    rather than set by style commands on a style object per cell."""
+    t = FastTable(
+        rows,
+        colWidths=list(widths),
+        rowHeights=[ROW_HEIGHT] * len(rows),
+        repeatRows=1,
+        cellStyles=cell_styles(len(rows), len(widths), own_rows, bad_cells),
+    )
     style: list[tuple[object, ...]] = [
-        ("FONT", (0, 0), (-1, -1), FONT, 7.5),
-        ("FONT", (0, 0), (-1, 0), BOLD, 7.5),
-        ("TEXTCOLOR", (0, 0), (-1, 0), colors.white),
         ("BACKGROUND", (0, 0), (-1, 0), HEAD_BACKGROUND),
         ("GRID", (0, 0), (-1, -1), 0.25, GRID),
-        ("VALIGN", (0, 0), (-1, -1), "TOP"),
-        ("TOPPADDING", (0, 0), (-1, -1), 1.5),
-        ("BOTTOMPADDING", (0, 0), (-1, -1), 1.5),
     ]
-    for r in own_rows:
-        style += [("BACKGROUND", (0, r), (-1, r), OWN_BACKGROUND), ("FONT", (0, r), (-1, r), BOLD)]
-    style += [("TEXTCOLOR", (c, r), (c, r), BAD_TEXT) for r, c in bad_cells]
+    style += [("BACKGROUND", (0, r), (-1, r), OWN_BACKGROUND) for r in own_rows]
     t.setStyle(TableStyle(style))
     return t
 

@@ -28,6 +28,7 @@ from analysis.reports.assemble import (
     run_context,
 )
 from analysis.reports.data import ResultRow, ScoreRow
+from analysis.reports.figures import point_charts_build
 from analysis.reports.render import render_report
 from analysis.selectors import current_run
 from labs.models import Participant
@@ -232,10 +233,31 @@ def report_issue_batch(*, run_id: int, participant_ids: Sequence[int]) -> list[i
         context = run_context(run)
         own = participant_rows(run, context, todo) if context.rows is None else {}
         common = comparison_common(comparison)
+        _round_charts_build(run, participants[todo[0]], own, common, context)
         for pk in todo:
             report = _issue_current(run, participants[pk], own.get(pk), common, context)
             done[pk] = report.pk
     return [done[pk] for pk in ids]
+
+
+def _round_charts_build(
+    run: AnalysisRun,
+    participant: Participant,
+    own: dict[int, tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]]],
+    common: ComparisonCommon,
+    context: RunContext,
+) -> None:
+    """Build every point chart of a large round once per process (a no-op afterwards),
+    outside the reports' transactions: with at least as many participants as points,
+    nearly every point is among some participant's worst and gets drawn anyway, so a
+    worker pays for the round's charts up front instead of across its next reports."""
+    if context.rows is not None or len(context.participants) < len(context.points):
+        return
+    data = report_data(
+        run=run, participant=participant, own=own.get(participant.pk), common=common,
+        context=context,
+    )  # fmt: skip
+    point_charts_build(data)
 
 
 @transaction.atomic

@@ -10,7 +10,7 @@ from django.db import connection
 from django.test.utils import CaptureQueriesContext
 
 from analysis.models import Report, Score
-from analysis.reports import assemble, sections
+from analysis.reports import assemble, charts, sections
 from analysis.reports.assemble import clear_run_contexts, report_data, run_context
 from analysis.reports.data import ReportData
 from analysis.reports.render import render_report
@@ -254,3 +254,39 @@ def test_large_round_reads_own_rows_in_one_query(monkeypatch, analysed, large):
     assert "participant_id" in score_reads[0] and " IN (" in score_reads[0]
     assert all(b"%PDF-1.4" in r.file.read() for r in Report.objects.all())
     assert sorted(Report.objects.values_list("participant_id", flat=True)) == sorted(ids[:6])
+
+
+def point_charts_built(monkeypatch) -> list[str]:
+    """The titles of the point charts drawn from now on (the chart cache emptied)."""
+    built: list[str] = []
+    real = charts.PointChart.__init__
+    monkeypatch.setattr(
+        charts.PointChart,
+        "__init__",
+        lambda self, *a, **k: built.append(k["title"]) or real(self, *a, **k),
+    )
+    charts.point_chart.cache_clear()
+    return built
+
+
+def test_a_large_rounds_first_batch_builds_every_point_chart(monkeypatch, large):
+    """With at least as many participants as points, every point's chart is drawn with
+    the process's first batch of the run (not in whichever later report first shows
+    it), once: later batches draw none."""
+    fake_pdf(monkeypatch)  # the reports draw nothing themselves
+    c = make_round("CHARTS", 8, 3)
+    ids = list(c.participants.order_by("code").values_list("pk", flat=True))
+    built = point_charts_built(monkeypatch)
+    report_issue_batch(run_id=current_run(c).pk, participant_ids=ids[:2])
+    assert sorted(built) == [f"MEMS 0, X, {f} Hz, linear vertical" for f in (10, 20, 30)]
+    report_issue_batch(run_id=current_run(c).pk, participant_ids=ids[2:5])
+    assert len(built) == 3
+
+
+def test_a_round_with_fewer_participants_than_points_draws_charts_as_needed(monkeypatch, large):
+    fake_pdf(monkeypatch)
+    c = make_round("FEW", 4, 5)
+    ids = list(c.participants.order_by("code").values_list("pk", flat=True))
+    built = point_charts_built(monkeypatch)
+    report_issue_batch(run_id=current_run(c).pk, participant_ids=ids)
+    assert built == []
