@@ -173,7 +173,10 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
         )
     points = list(comparison.measurement_points.select_related("device"))
     summary = DemoSummary(comparison=comparison)
-    coordinator = _user(summary, "coordinator", password, staff=True)
+    coordinator = _user(summary, "coordinator", password)
+    if coordinator.is_staff:  # demo databases made before the admin was closed to them
+        coordinator.is_staff = False
+        coordinator.save(update_fields=["is_staff"])
     coordinator.groups.add(_coordinators_group())
     comparison.coordinators.add(coordinator)
     admin = _user(summary, "admin", password, staff=True)
@@ -236,12 +239,12 @@ def _devices(comparison: Comparison) -> list[Device]:
 
 
 def _coordinators_group() -> Group:
-    group, created = Group.objects.get_or_create(name=COORDINATORS_GROUP)
-    if created:
-        perms = Permission.objects.filter(
-            content_type__app_label__in=["proficiency", "labs", "analysis"]
-        )
-        group.permissions.set(perms)
+    """Coordinators may create comparisons; everything else they may do follows from the
+    comparisons they coordinate (never a model permission: the admin is for superusers)."""
+    group, _ = Group.objects.get_or_create(name=COORDINATORS_GROUP)
+    group.permissions.set(
+        Permission.objects.filter(content_type__app_label="proficiency", codename="add_comparison")
+    )
     return group
 
 

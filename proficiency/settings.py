@@ -45,7 +45,8 @@ vars().update(env.email_url("EMAIL_URL", default="consolemail://"))
 DEFAULT_FROM_EMAIL = env.str("DEFAULT_FROM_EMAIL", default="proficiency-testing@localhost")
 
 INSTALLED_APPS = [
-    "django.contrib.admin",
+    # the admin, for superusers only (proficiency/admin_site.py)
+    "proficiency.admin_site.SuperuserAdminConfig",
     "django.contrib.auth",
     "django.contrib.contenttypes",
     "django.contrib.sessions",

@@ -63,6 +63,9 @@ def test_demo_accounts_and_roles():
     coordinator = users.get(username="coordinator")
     assert coordinator.check_password("demo-password-1")
     assert coordinator.groups.filter(name="coordinators").exists()
+    # least privilege: no staff flag, and the one model permission coordinators use
+    assert not coordinator.is_staff
+    assert sorted(coordinator.get_all_permissions()) == ["proficiency.add_comparison"]
     assert Comparison.objects.get(code=DEMO_CODE).coordinators.filter(pk=coordinator.pk).exists()
     assert Membership.objects.filter(user__username="lab07").get().laboratory.name
 
