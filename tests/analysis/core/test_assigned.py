@@ -192,7 +192,10 @@ def test_lcs_exhaustive_beats_sequential() -> None:
     assert a.value[0] == pytest.approx(-0.9)
     assert a.diagnostics["chi2_obs"][0] == pytest.approx(4.16)
     assert a.diagnostics["exhaustive"][0]
-    b = largest_consistent_subset(x, [1.0] * 5, g0(5), exhaustive_max=4)
+    swept = largest_consistent_subset(x, [1.0] * 5, g0(5), exhaustive_max=0)
+    np.testing.assert_array_equal(swept.included, a.included)
+    assert swept.diagnostics["exhaustive"][0]
+    b = largest_consistent_subset(x, [1.0] * 5, g0(5), exhaustive_max=4, exact_max=4)
     np.testing.assert_array_equal(b.included, [True, True, False, False, False])
     assert not b.diagnostics["exhaustive"][0] and b.diagnostics["consistent"][0]
 
@@ -223,13 +226,104 @@ def test_lcs_consistent_set_unchanged_and_single_result() -> None:
     assert one.value[0] == 5.0 and one.included.all()
 
 
-def test_lcs_large_group_uses_sequential_and_ends_consistent() -> None:
+def test_lcs_beyond_the_exact_limit_is_sequential_and_says_so() -> None:
     rng = np.random.default_rng(3)
     x = np.concatenate([rng.normal(0, 1, 30), [8.0, -9.0, 12.0]])
-    a = largest_consistent_subset(x, np.ones(x.size), g0(x.size))
+    a = largest_consistent_subset(x, np.ones(x.size), g0(x.size), exact_max=32)
     assert not a.diagnostics["exhaustive"][0]
     assert a.diagnostics["consistent"][0]
     assert not a.included[-3:].any()
+    exact = largest_consistent_subset(x, np.ones(x.size), g0(x.size))
+    assert exact.diagnostics["exhaustive"][0] and exact.diagnostics["consistent"][0]
+    assert exact.included.sum() >= a.included.sum()
+
+
+# A PT round of 21 results in two clusters, made to defeat the sequential approach: one
+# result of the smaller cluster has a tiny uncertainty, so the weighted mean of all sits
+# on it and the sequential approach drops the larger cluster one by one, ending on 8
+# results, while the 12 results of the larger cluster are consistent (the only consistent
+# subset of that size: the enumeration of all 2^21 subsets below says so).
+TWO_CLUSTERS_X = [
+    0.0441, 0.0452, 0.0437, 0.0449, 0.0458, 0.0440, 0.0446, 0.0433, 0.0455, 0.0444, 0.0450,
+    0.0439, 0.01397, 0.0152, 0.0131, 0.0146, 0.0128, 0.0155, 0.0137, 0.0143, 0.0298,
+]  # fmt: skip
+TWO_CLUSTERS_U = [
+    0.0038, 0.0041, 0.0035, 0.0040, 0.0044, 0.0036, 0.0039, 0.0042, 0.0037, 0.0040, 0.0043,
+    0.0038, 0.00008, 0.0030, 0.0028, 0.0032, 0.0027, 0.0031, 0.0029, 0.0030, 0.0020,
+]  # fmt: skip
+
+
+def test_lcs_two_clusters_where_the_sequential_path_fails() -> None:
+    x, u, g = TWO_CLUSTERS_X, TWO_CLUSTERS_U, g0(21)
+    greedy = largest_consistent_subset(x, u, g, exhaustive_max=0, exact_max=0)
+    assert greedy.included.sum() == 8 and greedy.value[0] == pytest.approx(0.013971, abs=1e-6)
+    assert not greedy.diagnostics["exhaustive"][0]
+    enumerated = largest_consistent_subset(x, u, g, exhaustive_max=21)  # all 2^21 subsets
+    swept = largest_consistent_subset(x, u, g)  # 21 > EXHAUSTIVE_MAX: the sweep
+    for a in (enumerated, swept):
+        np.testing.assert_array_equal(a.included, [True] * 12 + [False] * 9)
+        assert a.diagnostics["exhaustive"][0] and a.diagnostics["n_excluded"][0] == 9
+        # by hand: weighted mean of the first 12 and (Σ 1/u²)^(-1/2)
+        w = 1 / np.array(u[:12]) ** 2
+        assert a.value[0] == pytest.approx(np.sum(w * x[:12]) / np.sum(w), rel=1e-12)
+        assert a.standard_uncertainty[0] == pytest.approx(np.sum(w) ** -0.5, rel=1e-12)
+    assert swept.value[0] == pytest.approx(0.044491, abs=1e-6)
+    assert swept.standard_uncertainty[0] == pytest.approx(0.001130, abs=1e-6)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.tuples(
+            # a coarse grid makes ties and identical results common
+            st.integers(-40, 40).map(lambda v: v / 4),
+            st.sampled_from([0.25, 0.5, 1.0, 1.7, 3.0]),
+        ),
+        min_size=1,
+        max_size=11,
+    )
+)
+def test_lcs_sweep_matches_brute_force_with_ties(data: list) -> None:
+    """The sweep (enumeration switched off) against plain enumeration; brute force is an
+    oracle up to about 11 results here (2^11 subsets in pure Python per example)."""
+    x, u = [t[0] for t in data], [t[1] for t in data]
+    a = largest_consistent_subset(x, u, g0(len(x)), exhaustive_max=0)
+    expected = brute_force_lcs(x, u)
+    assert int(a.included.sum()) == len(expected)
+    assert a.diagnostics["consistent"][0] and a.diagnostics["exhaustive"][0]
+    w, xs = 1 / np.array(u) ** 2, np.array(x)
+    m = np.zeros(len(x), bool)
+    m[list(expected)] = True
+    y = np.sum(w[m] * xs[m]) / np.sum(w[m])
+    assert a.diagnostics["chi2_obs"][0] == pytest.approx(np.sum(w[m] * (xs[m] - y) ** 2), abs=1e-9)
+
+
+def test_lcs_sweep_matches_the_enumeration_up_to_21_results() -> None:
+    """Random rounds of 13–21 results with 1–6 outliers and spread uncertainties: the
+    sweep and the vectorised enumeration of every subset agree (subset and χ²)."""
+    rng = np.random.default_rng(2026)
+    for _ in range(60):
+        n = int(rng.integers(13, 22))
+        k = int(rng.integers(1, 7))
+        x = np.concatenate([rng.normal(0, 1, n - k), rng.normal(0, 1, k) + rng.choice([-6, 5], k)])
+        u = rng.uniform(0.3, 2.0, n) * rng.choice([1.0, 0.05], n, p=[0.9, 0.1])
+        enumerated = largest_consistent_subset(x, u, g0(n), exhaustive_max=21)
+        swept = largest_consistent_subset(x, u, g0(n), exhaustive_max=0)
+        assert swept.included.sum() == enumerated.included.sum()
+        assert swept.diagnostics["chi2_obs"][0] == pytest.approx(
+            enumerated.diagnostics["chi2_obs"][0], rel=1e-9, abs=1e-12
+        )
+
+
+def test_lcs_200_results_with_10_outliers_is_exact() -> None:
+    rng = np.random.default_rng(7)
+    x = np.concatenate([rng.normal(0, 1, 190), rng.normal(9, 1, 10)])
+    u = rng.uniform(0.5, 1.5, 200)
+    a = largest_consistent_subset(x, u, g0(200))
+    assert a.diagnostics["exhaustive"][0] and a.diagnostics["consistent"][0]
+    assert not a.included[190:].any()  # every planted outlier is out
+    greedy = largest_consistent_subset(x, u, g0(200), exact_max=0)
+    assert a.included.sum() >= greedy.included.sum()
 
 
 # --- DerSimonian–Laird ----------------------------------------------------------------
