@@ -69,6 +69,7 @@ MIDDLEWARE = [
     "django.middleware.security.SecurityMiddleware",
     "proficiency.middleware.ContentSecurityPolicyMiddleware",
     "proficiency.middleware.RequestSizeLimitMiddleware",
+    "proficiency.middleware.ControlCharacterMiddleware",
     "whitenoise.middleware.WhiteNoiseMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
@@ -195,6 +196,12 @@ REST_FRAMEWORK = {
     ],
     "DEFAULT_PERMISSION_CLASSES": ["rest_framework.permissions.IsAuthenticated"],
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
+    # DRF's parsers, refusing control characters with a 400 naming the field
+    "DEFAULT_PARSER_CLASSES": [
+        "proficiency.parsers.JSONParser",
+        "proficiency.parsers.FormParser",
+        "proficiency.parsers.MultiPartParser",
+    ],
     "DEFAULT_FILTER_BACKENDS": ["proficiency.filters.FilterBackend"],  # django-filter's
     "DEFAULT_PAGINATION_CLASS": "proficiency.pagination.PageNumberPagination",  # DRF's
     "PAGE_SIZE": 100,
