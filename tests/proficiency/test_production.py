@@ -29,7 +29,9 @@ def closed_port() -> int:
 def production_env(**extra: str) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("DEBUG", "SECURE_"))}
     env.update(DEBUG="false", SECRET_KEY="x" * 60 + "-test-production-key",
-               ALLOWED_HOSTS="pt.example.org", **extra)  # fmt: skip
+               ALLOWED_HOSTS="pt.example.org",
+               EMAIL_URL="smtp+tls://pt:secret@mail.example.org:587")  # fmt: skip
+    env.update(extra)
     return env
 
 
@@ -176,6 +178,41 @@ def test_production_refuses_the_development_secret_key():
     )
     assert result.returncode != 0
     assert "SECRET_KEY must be set when DEBUG is off." in result.stderr
+
+
+@pytest.mark.parametrize("email_url", [None, "consolemail://", "filemail:///tmp/pt-mail"])
+def test_production_refuses_an_email_backend_that_is_no_mail_server(email_url):
+    """The console backend (the default) would print valid password reset links into the
+    web log; with DEBUG off the service does not start without a mail server."""
+    env = production_env()
+    env.pop("EMAIL_URL")
+    if email_url:
+        env["EMAIL_URL"] = email_url
+    result = subprocess.run(
+        [sys.executable, "manage.py", "check"], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    assert result.returncode == 1
+    assert "ImproperlyConfigured: EMAIL_URL must name a mail server when DEBUG is off" in (
+        result.stderr
+    )
+
+
+@pytest.mark.parametrize(
+    ("email_url", "backend"),
+    [
+        ("smtp://mail.example.org:25", "django.core.mail.backends.smtp.EmailBackend"),
+        ("smtp+ssl://u:p@mail.example.org:465", "django.core.mail.backends.smtp.EmailBackend"),
+        ("dummymail://", "django.core.mail.backends.dummy.EmailBackend"),  # sends nothing
+    ],
+)
+def test_production_accepts_a_mail_server_or_sending_nothing(email_url, backend):
+    show = "from django.conf import settings as s; print(s.EMAIL_BACKEND)"
+    result = subprocess.run(
+        [sys.executable, "manage.py", "shell", "-c", show],
+        cwd=ROOT, env=production_env(EMAIL_URL=email_url), capture_output=True, text=True,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip().splitlines()[-1] == backend
 
 
 # --- structured logs --------------------------------------------------------------------------
