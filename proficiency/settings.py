@@ -201,6 +201,9 @@ CELERY_BEAT_SCHEDULE = {
     "reports-pending": {"task": "analysis.tasks.reports_pending_task", "schedule": 300.0},
 }
 
+API_BROWSABLE = env.bool("API_BROWSABLE", default=DEBUG)
+# /api/schema/ and /api/docs/: public, or for signed-in people only (proficiency.views)
+API_DOCS_PUBLIC = env.bool("API_DOCS_PUBLIC", default=DEBUG)
 REST_FRAMEWORK = {
     "EXCEPTION_HANDLER": "proficiency.errors.api_exception_handler",
     "DEFAULT_AUTHENTICATION_CLASSES": [
@@ -209,6 +212,9 @@ REST_FRAMEWORK = {
     "DEFAULT_PERMISSION_CLASSES": ["rest_framework.permissions.IsAuthenticated"],
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
     # DRF's parsers, refusing control characters with a 400 naming the field
+    # the browsable API (HTML pages) only while developing, unless API_BROWSABLE says otherwise
+    "DEFAULT_RENDERER_CLASSES": ["rest_framework.renderers.JSONRenderer"]
+    + (["rest_framework.renderers.BrowsableAPIRenderer"] if API_BROWSABLE else []),
     "DEFAULT_PARSER_CLASSES": [
         "proficiency.parsers.JSONParser",
         "proficiency.parsers.FormParser",

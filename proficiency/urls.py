@@ -8,6 +8,7 @@ from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerSplitVie
 from labs import views as lab_views
 from proficiency.accounts import PasswordResetView
 from proficiency.health import healthz
+from proficiency.views import api_docs_guard
 
 admin.site.site_header = "Proficiency testing — administration"
 admin.site.site_title = "PT administration"
@@ -34,7 +35,12 @@ urlpatterns = [
     path("", include("analysis.reports.views")),
     path("accounts/", include(AUTH_URLS)),
     path("admin/", admin.site.urls),
-    path("api/schema/", SpectacularAPIView.as_view(), name="schema"),
+    # for signed-in people unless API_DOCS_PUBLIC (README, "Configuration")
+    path("api/schema/", api_docs_guard(SpectacularAPIView.as_view()), name="schema"),
     # The split view serves Swagger UI's start-up script as a file (CSP: no inline script).
-    path("api/docs/", SpectacularSwaggerSplitView.as_view(url_name="schema"), name="api-docs"),
+    path(
+        "api/docs/",
+        api_docs_guard(SpectacularSwaggerSplitView.as_view(url_name="schema")),
+        name="api-docs",
+    ),
 ]

@@ -215,6 +215,72 @@ def test_production_accepts_a_mail_server_or_sending_nothing(email_url, backend)
     assert result.stdout.strip().splitlines()[-1] == backend
 
 
+# --- the API in production: JSON only, documentation behind sign-in --------------------------
+
+SHOW_API = """
+import json
+from django.test import Client
+from rest_framework.settings import api_settings
+browser = "text/html,application/xhtml+xml,application/xml;q=0.9,*/*;q=0.8"
+renderers = [r.__name__ for r in api_settings.DEFAULT_RENDERER_CLASSES]
+c = Client(HTTP_HOST="pt.example.org")
+# (the browsable pages need the collected static files: not asked for here)
+one = len(renderers) == 1
+api = c.get("/api/v1/comparisons/", HTTP_ACCEPT=browser, secure=True) if one else None
+schema = c.get("/api/schema/?format=json", secure=True)
+docs = c.get("/api/docs/", secure=True) if schema.status_code == 403 else None
+print(json.dumps({
+    "renderers": renderers,
+    "api": api and [api.status_code, api["Content-Type"]],
+    "schema": [schema.status_code, schema["Content-Type"]],
+    "docs": docs and [docs.status_code, docs.get("Location", "")],
+}))
+"""
+
+
+def show_api(**extra: str) -> dict:
+    result = subprocess.run(
+        [sys.executable, "manage.py", "shell", "-c", SHOW_API],
+        cwd=ROOT, env=production_env(**extra), capture_output=True, text=True,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def test_production_api_has_no_browsable_pages_and_its_docs_need_sign_in():
+    """A browser asking the API gets JSON (the browsable API's HTML pages showed forms and
+    the parameters of every view); the schema and Swagger UI are for signed-in people."""
+    assert show_api() == {
+        "renderers": ["JSONRenderer"],
+        "api": [401, "application/json"],
+        "schema": [403, "application/json"],
+        "docs": [302, "/accounts/login/?next=/api/docs/"],
+    }
+
+
+def test_production_api_browsable_pages_and_public_docs_when_configured():
+    shown = show_api(API_BROWSABLE="true", API_DOCS_PUBLIC="true")
+    assert shown["renderers"] == ["JSONRenderer", "BrowsableAPIRenderer"]
+    assert shown["schema"] == [200, "application/vnd.oai.openapi+json"]
+
+
+@pytest.mark.django_db
+def test_api_docs_need_sign_in_unless_public(client, settings):
+    from tests.factories import UserFactory
+
+    settings.API_DOCS_PUBLIC = False
+    refused = client.get("/api/schema/?format=json")
+    assert refused.status_code == 403
+    assert refused.json() == {"detail": "Sign in to read the API schema.", "errors": []}
+    assert client.get("/api/docs/")["Location"] == "/accounts/login/?next=/api/docs/"
+    client.force_login(UserFactory())
+    assert client.get("/api/schema/?format=json").status_code == 200
+    assert client.get("/api/docs/").status_code == 200
+    client.logout()
+    settings.API_DOCS_PUBLIC = True
+    assert client.get("/api/schema/?format=json").status_code == 200
+
+
 # --- structured logs --------------------------------------------------------------------------
 
 
