@@ -32,6 +32,11 @@ def error_responses(result: dict[str, Any], generator: Any, request: Any, public
         for operation in operations.values():
             statuses = COMMON | (WITH_BODY if "requestBody" in operation else {})
             responses = operation.setdefault("responses", {})
+            for status, response in responses.items():
+                # errors are always JSON, also from views that render CSV or XLSX
+                content = response.get("content", {})
+                if status >= "400" and ERROR_REF in [c.get("schema") for c in content.values()]:
+                    response["content"] = {"application/json": {"schema": ERROR_REF}}
             for status, description in statuses.items():
                 responses.setdefault(
                     status,
