@@ -405,6 +405,11 @@ def test_gunicorn_config_has_at_least_two_workers_and_json_logs(monkeypatch):
     config = runpy.run_path(str(ROOT / "deploy" / "gunicorn.conf.py"))
     assert config["workers"] == 2
     assert config["wsgi_app"] == "proficiency.wsgi:application"
+    # threaded workers without keep-alive (tests/proficiency/test_slow_clients.py)
+    from gunicorn.workers.gthread import ThreadWorker
+
+    assert issubclass(config["worker_class"], ThreadWorker)
+    assert (config["threads"], config["keepalive"], config["READ_TIMEOUT"]) == (4, 0, 30.0)
     formatter = config["logconfig_dict"]["formatters"]["json"]["()"]
     assert formatter == "proficiency.logs.JsonFormatter"
 
