@@ -207,6 +207,17 @@ def _check_when_parsed(request: HttpRequest) -> None:
     request._load_post_and_files = load_and_check  # type: ignore[attr-defined]
 
 
+def bad_request(request: HttpRequest, exception: Exception) -> HttpResponse:
+    """``handler400``: a :class:`ControlCharacters` raised outside a view (Django's CSRF
+    check reads a form before the view) gets the same answer as in a view; any other bad
+    request Django's."""
+    if isinstance(exception, ControlCharacters):
+        return control_response(request, exception)
+    from django.views.defaults import bad_request as django_bad_request
+
+    return django_bad_request(request, exception)
+
+
 def control_response(request: HttpRequest, exc: ControlCharacters) -> HttpResponse:
     if request.path.startswith("/api/"):
         return JsonResponse({"detail": exc.message, "errors": exc.errors}, status=400)

@@ -44,3 +44,6 @@ urlpatterns = [
         name="api-docs",
     ),
 ]
+
+# a form field with a control character found by the CSRF check: 400 naming the field
+handler400 = "proficiency.middleware.bad_request"

@@ -178,3 +178,21 @@ def test_multipart_fields_are_checked_in_the_pages(api_world):
     assert response.status_code == 400
     assert "action: The value contains the control character U+0000" in response.content.decode()
     assert Submission.objects.count() == before
+
+
+def test_multipart_fields_read_by_the_csrf_check_are_400_naming_them(api_world):
+    """With CSRF enforced, Django's CSRF check reads the form before the view does."""
+    from django.test import Client
+
+    client = Client(enforce_csrf_checks=True)
+    client.force_login(api_world.users["staff_a"])
+    url = "/lab/comparisons/IMU-A-01/upload/"
+    assert client.get(url).status_code == 200
+    token = client.cookies["csrftoken"].value
+    before = Submission.objects.count()
+    file = SimpleUploadedFile("results.csv", as_csv(rows()), content_type="text/csv")
+    body = {"file": file, "action": "sub\x00mit", "csrfmiddlewaretoken": token}
+    response = client.post(url, body)
+    assert response.status_code == 400
+    assert "action: The value contains the control character U+0000" in response.content.decode()
+    assert Submission.objects.count() == before
