@@ -211,10 +211,10 @@ REST_FRAMEWORK = {
     ],
     "DEFAULT_PERMISSION_CLASSES": ["rest_framework.permissions.IsAuthenticated"],
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
-    # DRF's parsers, refusing control characters with a 400 naming the field
     # the browsable API (HTML pages) only while developing, unless API_BROWSABLE says otherwise
     "DEFAULT_RENDERER_CLASSES": ["rest_framework.renderers.JSONRenderer"]
     + (["rest_framework.renderers.BrowsableAPIRenderer"] if API_BROWSABLE else []),
+    # DRF's parsers, refusing control characters with a 400 naming the field
     "DEFAULT_PARSER_CLASSES": [
         "proficiency.parsers.JSONParser",
         "proficiency.parsers.FormParser",
