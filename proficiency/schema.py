@@ -21,7 +21,10 @@ COMMON = {
     "429": "Too many requests; retry after the Retry-After header's seconds",
 }
 #: only where a request body is read
-WITH_BODY = {"413": "The request body or the file is too large"}
+WITH_BODY = {
+    "413": "The request body or the file is too large",
+    "415": "The request body's Content-Type is not one this operation reads",
+}
 
 
 def error_responses(result: dict[str, Any], generator: Any, request: Any, public: Any) -> dict:
