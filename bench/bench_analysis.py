@@ -140,6 +140,7 @@ def start_workers(n: int, queue: str, chunk: int, quiet: bool = False) -> list[s
     """``n`` worker processes on ``queue``; ``quiet``: without their banner (stdout)."""
     env = os.environ | {"DATABASE_URL": SCRATCH_URL, "CELERY_BROKER_URL": BROKER,
                         "ANALYSIS_CHUNK_RESULTS": str(chunk), "DEBUG": "false",
+                        "EMAIL_URL": os.environ.get("EMAIL_URL", "dummymail://"),
                         "SECRET_KEY": f"bench-{uuid.uuid4().hex}"}  # fmt: skip
     cmd = [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-P", "solo",
            "-Q", queue, "--loglevel=WARNING", "--without-gossip", "--without-mingle",

@@ -57,6 +57,7 @@ def server_env(db_url: str) -> dict[str, str]:
         **os.environ,
         "DATABASE_URL": db_url,
         "DEBUG": "false",
+        "EMAIL_URL": os.environ.get("EMAIL_URL", "dummymail://"),
         "SECRET_KEY": "bench-only-not-a-secret-bench-only-not-a-secret",
         "SECURE_SSL_REDIRECT": "false",
         "LOG_LEVEL": "WARNING",

@@ -233,6 +233,7 @@ def server_env(port: int, state: Path) -> dict[str, str]:
     env = dict(os.environ)
     env.update(
         DEBUG="false",
+        EMAIL_URL=env.get("EMAIL_URL") or "dummymail://",
         SECRET_KEY=env.get("SECRET_KEY") or secrets.token_urlsafe(64),
         ALLOWED_HOSTS="127.0.0.1,localhost",
         GUNICORN_BIND=f"127.0.0.1:{port}",

@@ -54,6 +54,7 @@ def setup_django() -> None:
     os.environ["MEDIA_ROOT"] = str(MEDIA)
     # Production-like: no SQL query log (DEBUG's cursor wrapper also lacks COPY options).
     os.environ["DEBUG"] = "false"
+    os.environ.setdefault("EMAIL_URL", "dummymail://")  # DEBUG off needs one; send nothing
     os.environ.setdefault("SECRET_KEY", uuid.uuid4().hex * 2)
     os.environ.setdefault("DJANGO_SETTINGS_MODULE", "proficiency.settings")
     sys.path.insert(0, str(ROOT))

@@ -3,10 +3,19 @@
 Everything can be overridden from the environment: ``GUNICORN_BIND`` (default
 ``127.0.0.1:8000``; a reverse proxy terminates TLS in front), ``WEB_CONCURRENCY``
 (workers, default 2 × cores + 1, at least 2), ``GUNICORN_TIMEOUT`` (seconds),
-``GUNICORN_MAX_REQUESTS`` (requests a worker serves before it is replaced, default 20000).
-Sync workers: gunicorn's ``gthread`` worker with keep-alive cost less CPU per request in
-the load test but pinned each client's connection to one worker, and its p95 latency was
-1.5-2x the sync workers' (bench/README.md, "Load test").
+``GUNICORN_MAX_REQUESTS`` (requests a worker serves before it is replaced, default 20000),
+``GUNICORN_THREADS`` (threads per worker, default 4), ``GUNICORN_READ_TIMEOUT`` (seconds,
+default 30), ``GUNICORN_KEEPALIVE`` (seconds, default 0).
+
+Threaded workers (``gthread``), so that slow clients cannot stall the service: a sync
+worker reads one connection at a time, so as many clients as workers that send half
+their headers and wait (no buffering proxy in front, or a slow network) kept every
+worker, and ``/healthz``, waiting. Here a connection that sends nothing costs no thread;
+one that is partly sent holds one thread of its worker, for at most
+``GUNICORN_READ_TIMEOUT`` seconds of silence (then it is closed). Keep-alive is off by
+default: with it, gthread pinned each client's connection to one worker and the load
+test's p95 latency was 1.5-2x the sync workers' (bench/README.md, "Load test"); without
+it every request is a new connection, spread over the workers as with sync workers.
 Logs go to standard output as JSON lines (``LOG_FORMAT=plain`` for text), with
 the access log as key=value pairs inside ``message``.
 """
@@ -15,10 +24,30 @@ import gc
 import multiprocessing
 import os
 
+from gunicorn.workers.gthread import ThreadWorker
+
+#: seconds of silence allowed to a client while its request is read or its answer written
+READ_TIMEOUT = float(os.environ.get("GUNICORN_READ_TIMEOUT", "30"))
+
+
+class SlowClientThreadWorker(ThreadWorker):
+    """gunicorn's gthread worker, with a timeout on each read and write of a connection
+    (gthread's own sockets block without one: a client that stops half-way through its
+    headers would hold a thread until it disconnects)."""
+
+    def enqueue_req(self, conn):  # gthread's, with the timeout
+        conn.init()  # blocking socket, parser
+        conn.sock.settimeout(READ_TIMEOUT)
+        future = self.tpool.submit(self.handle, conn)
+        self._wrap_future(future, conn)
+
+
 wsgi_app = "proficiency.wsgi:application"
 bind = os.environ.get("GUNICORN_BIND", "127.0.0.1:8000").split(",")
 workers = max(2, int(os.environ.get("WEB_CONCURRENCY", multiprocessing.cpu_count() * 2 + 1)))
-worker_class = "sync"
+worker_class = SlowClientThreadWorker
+threads = max(2, int(os.environ.get("GUNICORN_THREADS", "4")))
+keepalive = int(os.environ.get("GUNICORN_KEEPALIVE", "0"))
 timeout = int(os.environ.get("GUNICORN_TIMEOUT", "60"))
 graceful_timeout = 20
 # Recycle workers now and then (memory held by numpy/matplotlib). Not too often: a new

@@ -16,8 +16,8 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from analysis.core.signals.records import (
     Record,
@@ -98,7 +98,9 @@ def fit_figure_svg(record: Record, axis: str, frequency_hz: float, fs_hz: float)
     fit = fit_known_frequency(stretch, nu, PLOT_HARMONICS)
     model = _model(fit.amplitude[0], fit.phase[0], float(fit.offset[0]), nu, n)
     t_ms = np.arange(n) / fs_hz * 1e3
-    fig, ax = plt.subplots(figsize=(7.0, 2.6), dpi=100)
+    # a Figure of its own, not pyplot's global figure registry: the web workers are threaded
+    fig = Figure(figsize=(7.0, 2.6), dpi=100)
+    ax = fig.subplots()
     ax.plot(t_ms, stretch, ".", ms=2.5, color="#6c757d", label=f"{axis.upper()} samples")
     ax.plot(t_ms, model, "-", lw=1.2, color="#0d6efd", label="fitted sine (f, 2f, 3f)")
     ax.set_xlabel("time (ms)")
@@ -108,7 +110,6 @@ def fit_figure_svg(record: Record, axis: str, frequency_hz: float, fs_hz: float)
     fig.tight_layout()
     buf = io.StringIO()
     fig.savefig(buf, format="svg")
-    plt.close(fig)
     svg = buf.getvalue()
     return svg[svg.index("<svg") :]
 

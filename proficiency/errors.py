@@ -13,7 +13,6 @@ from typing import Any
 import psycopg
 from django.db import OperationalError as DjangoOperationalError
 from rest_framework.response import Response
-from rest_framework.views import exception_handler
 
 logger = logging.getLogger(__name__)
 
@@ -68,6 +67,10 @@ def api_exception_handler(exc: Exception, context: dict[str, Any]) -> Response |
     """DRF exception handler: ApplicationError -> JSON with detail and errors; a lost
     database connection (also one raised by psycopg directly, as COPY does) -> 503; else
     DRF's."""
+    # imported here: rest_framework.views loads the parsers (proficiency.parsers), which
+    # use this module's errors
+    from rest_framework.views import exception_handler
+
     if isinstance(exc, ApplicationError):
         return Response({"detail": exc.message, "errors": exc.errors}, status=exc.status_code)
     if isinstance(exc, DjangoOperationalError | psycopg.OperationalError):

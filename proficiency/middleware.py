@@ -1,19 +1,27 @@
-"""Request-level protections: the Content-Security-Policy header and the body size limit.
+"""Request-level protections: the Content-Security-Policy header, the body size limit and
+control characters in what a request carries.
 
 Django 5.2 has no built-in CSP; the policy is one string from settings
 (``CONTENT_SECURITY_POLICY``), sent on every response that has none yet.
 The size limit answers 413 from the declared ``Content-Length`` alone, so an
 oversized body is never read, spooled to disk or parsed (OWASP ASVS V12.1.1).
+Control characters are refused where they enter (:class:`ControlCharacterMiddleware`,
+``proficiency.parsers``): PostgreSQL cannot store NUL in text, and no field of the service
+needs the other C0 characters except tab and line breaks.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import re
+from collections.abc import Callable, Iterable
+from typing import Any
 
 from django.conf import settings
-from django.http import HttpRequest, HttpResponse, JsonResponse
+from django.core.exceptions import BadRequest
+from django.http import Http404, HttpRequest, HttpResponse, JsonResponse, QueryDict
 
 from labs.importers.values import human_size
+from proficiency.errors import ValidationFailed
 
 #: Room for the multipart envelope (boundaries, headers, the other form fields).
 MULTIPART_SLACK_BYTES = 64 * 1024
@@ -92,3 +100,126 @@ def client_ip(request: HttpRequest) -> str:
     if proxies > 0 and len(forwarded) >= proxies:
         return forwarded[-proxies]
     return str(request.META.get("REMOTE_ADDR", ""))
+
+
+# --- control characters -----------------------------------------------------------------------
+
+#: C0 control characters that no text field takes: all but tab, line feed and carriage return
+#: (a note or an address pasted from a file may have those). NUL is one: PostgreSQL refuses it.
+TEXT_CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f]")
+#: in a URL path: every C0 character and DEL (no route, code or token has any)
+PATH_CONTROL = re.compile("[\x00-\x1f\x7f]")
+CONTROL_DETAIL = "The request contains control characters; see errors."
+
+
+def control_message(text: str) -> str | None:
+    """Why ``text`` is refused (the first control character and where), or None."""
+    found = TEXT_CONTROL.search(text)
+    if found is None:
+        return None
+    return (
+        f"contains the control character U+{ord(found.group()):04X} at position "
+        f"{found.start() + 1}; only tab and line breaks are allowed"
+    )
+
+
+class ControlCharacters(ValidationFailed, BadRequest):
+    """400 naming each field (query parameter, form field, JSON key path) with a control
+    character. A ``BadRequest`` too, so that Django answers 400 wherever it is raised."""
+
+    def __init__(self, errors: list[dict[str, Any]]) -> None:
+        super().__init__(CONTROL_DETAIL, errors=errors)
+
+
+def control_errors(pairs: Iterable[tuple[str, str]]) -> list[dict[str, Any]]:
+    """formats.md §3 error rows for the (field, text) pairs with a control character; a
+    field's name is checked too (then the error names it with the character escaped)."""
+    errors = []
+    for name, value in pairs:
+        if why := control_message(name):
+            errors.append(
+                {"field": name.encode("unicode_escape").decode(), "message": f"The name {why}."}
+            )
+        elif why := control_message(value):
+            errors.append({"field": name, "message": f"The value {why}."})
+    return errors
+
+
+def query_dict_pairs(data: QueryDict) -> Iterable[tuple[str, str]]:
+    for name, values in data.lists():
+        for value in values:
+            yield name, value if isinstance(value, str) else ""
+
+
+def check_query_dict(data: QueryDict) -> None:
+    """Raise :class:`ControlCharacters` for a form's or a query's fields."""
+    if errors := control_errors(query_dict_pairs(data)):
+        raise ControlCharacters(errors)
+
+
+class ControlCharacterMiddleware:
+    """Control characters never reach a view, the ORM or the database.
+
+    * URL path: any C0 character or DEL -> 404 (no route matches such a path);
+    * query string and ``application/x-www-form-urlencoded`` body: a name or value with a
+      C0 character other than tab, LF and CR -> 400 naming the parameter;
+    * ``multipart/form-data``: its text fields are checked when the view parses the body
+      (not here: views first install their upload size limits);
+    * JSON bodies: ``proficiency.parsers`` (the API's parsers) name the key path.
+
+    After :class:`RequestSizeLimitMiddleware`, so that an oversized body is never read.
+    """
+
+    def __init__(self, get_response: Callable[[HttpRequest], HttpResponse]) -> None:
+        self.get_response = get_response
+
+    def __call__(self, request: HttpRequest) -> HttpResponse:
+        if PATH_CONTROL.search(request.path_info):
+            if request.path.startswith("/api/"):
+                return JsonResponse({"detail": "Not found.", "errors": []}, status=404)
+            raise Http404("No such page.")
+        errors = control_errors(query_dict_pairs(request.GET))
+        content_type = request.META.get("CONTENT_TYPE", "")
+        if request.method == "POST" and content_type.startswith("multipart/form-data"):
+            _check_when_parsed(request)
+        elif request.method == "POST" and not errors:
+            errors = control_errors(query_dict_pairs(request.POST))  # urlencoded (or nothing)
+        if errors:
+            return control_response(request, ControlCharacters(errors))
+        return self.get_response(request)
+
+    def process_exception(self, request: HttpRequest, exc: Exception) -> HttpResponse | None:
+        """A multipart field found by a (non-API) view's parsing: the same answer."""
+        if isinstance(exc, ControlCharacters):
+            return control_response(request, exc)
+        return None
+
+
+def _check_when_parsed(request: HttpRequest) -> None:
+    """Check a multipart body's text fields right after Django parses it (Django removes
+    unprintable characters from file names; the API's parsers check what they parse)."""
+    load = request._load_post_and_files  # type: ignore[attr-defined]
+
+    def load_and_check() -> None:
+        load()
+        check_query_dict(request._post)  # type: ignore[attr-defined]
+
+    request._load_post_and_files = load_and_check  # type: ignore[attr-defined]
+
+
+def bad_request(request: HttpRequest, exception: Exception) -> HttpResponse:
+    """``handler400``: a :class:`ControlCharacters` raised outside a view (Django's CSRF
+    check reads a form before the view) gets the same answer as in a view; any other bad
+    request Django's."""
+    if isinstance(exception, ControlCharacters):
+        return control_response(request, exception)
+    from django.views.defaults import bad_request as django_bad_request
+
+    return django_bad_request(request, exception)
+
+
+def control_response(request: HttpRequest, exc: ControlCharacters) -> HttpResponse:
+    if request.path.startswith("/api/"):
+        return JsonResponse({"detail": exc.message, "errors": exc.errors}, status=400)
+    lines = [exc.message, *(f"{e['field']}: {e['message']}" for e in exc.errors)]
+    return HttpResponse("\n".join(lines), status=400, content_type="text/plain; charset=utf-8")

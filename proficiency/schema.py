@@ -21,7 +21,10 @@ COMMON = {
     "429": "Too many requests; retry after the Retry-After header's seconds",
 }
 #: only where a request body is read
-WITH_BODY = {"413": "The request body or the file is too large"}
+WITH_BODY = {
+    "413": "The request body or the file is too large",
+    "415": "The request body's Content-Type is not one this operation reads",
+}
 
 
 def error_responses(result: dict[str, Any], generator: Any, request: Any, public: Any) -> dict:
@@ -32,6 +35,11 @@ def error_responses(result: dict[str, Any], generator: Any, request: Any, public
         for operation in operations.values():
             statuses = COMMON | (WITH_BODY if "requestBody" in operation else {})
             responses = operation.setdefault("responses", {})
+            for status, response in responses.items():
+                # errors are always JSON, also from views that render CSV or XLSX
+                content = response.get("content", {})
+                if status >= "400" and ERROR_REF in [c.get("schema") for c in content.values()]:
+                    response["content"] = {"application/json": {"schema": ERROR_REF}}
             for status, description in statuses.items():
                 responses.setdefault(
                     status,

@@ -39,9 +39,21 @@ if CACHES["default"]["BACKEND"] == "django.core.cache.backends.redis.RedisCache"
     # the same backend, reusing its redis.Redis client (proficiency/cache.py)
     CACHES["default"]["BACKEND"] = "proficiency.cache.RedisCache"
 
-# E-mail (publication notices): printed on the console unless EMAIL_URL names a server,
-# e.g. smtp+tls://user:password@mail.example.org:587, so the quick start needs none.
-vars().update(env.email_url("EMAIL_URL", default="consolemail://"))
+# E-mail (publication notices, password resets): printed on the console unless EMAIL_URL
+# names a server, e.g. smtp+tls://user:password@mail.example.org:587, so the quick start
+# needs none. With DEBUG off a server is required: the console would write valid password
+# reset links into the service's log. (dummymail:// sends nothing at all, for benchmarks.)
+_EMAIL = env.email_url("EMAIL_URL", default="consolemail://")
+vars().update(_EMAIL)
+if not DEBUG and _EMAIL["EMAIL_BACKEND"] not in (
+    "django.core.mail.backends.smtp.EmailBackend",
+    "django.core.mail.backends.dummy.EmailBackend",
+):
+    raise ImproperlyConfigured(
+        "EMAIL_URL must name a mail server when DEBUG is off, e.g. "
+        "smtp+tls://user:password@mail.example.org:587 (the console e-mail backend would "
+        "write password reset links into the log)."
+    )
 DEFAULT_FROM_EMAIL = env.str("DEFAULT_FROM_EMAIL", default="proficiency-testing@localhost")
 
 INSTALLED_APPS = [
@@ -70,6 +82,7 @@ MIDDLEWARE = [
     "django.middleware.security.SecurityMiddleware",
     "proficiency.middleware.ContentSecurityPolicyMiddleware",
     "proficiency.middleware.RequestSizeLimitMiddleware",
+    "proficiency.middleware.ControlCharacterMiddleware",
     "whitenoise.middleware.WhiteNoiseMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
@@ -189,6 +202,9 @@ CELERY_BEAT_SCHEDULE = {
     "reports-pending": {"task": "analysis.tasks.reports_pending_task", "schedule": 300.0},
 }
 
+API_BROWSABLE = env.bool("API_BROWSABLE", default=DEBUG)
+# /api/schema/ and /api/docs/: public, or for signed-in people only (proficiency.views)
+API_DOCS_PUBLIC = env.bool("API_DOCS_PUBLIC", default=DEBUG)
 REST_FRAMEWORK = {
     "EXCEPTION_HANDLER": "proficiency.errors.api_exception_handler",
     "DEFAULT_AUTHENTICATION_CLASSES": [
@@ -196,6 +212,15 @@ REST_FRAMEWORK = {
     ],
     "DEFAULT_PERMISSION_CLASSES": ["rest_framework.permissions.IsAuthenticated"],
     "DEFAULT_SCHEMA_CLASS": "drf_spectacular.openapi.AutoSchema",
+    # the browsable API (HTML pages) only while developing, unless API_BROWSABLE says otherwise
+    "DEFAULT_RENDERER_CLASSES": ["rest_framework.renderers.JSONRenderer"]
+    + (["rest_framework.renderers.BrowsableAPIRenderer"] if API_BROWSABLE else []),
+    # DRF's parsers, refusing control characters with a 400 naming the field
+    "DEFAULT_PARSER_CLASSES": [
+        "proficiency.parsers.JSONParser",
+        "proficiency.parsers.FormParser",
+        "proficiency.parsers.MultiPartParser",
+    ],
     "DEFAULT_FILTER_BACKENDS": ["proficiency.filters.FilterBackend"],  # django-filter's
     "DEFAULT_PAGINATION_CLASS": "proficiency.pagination.PageNumberPagination",  # DRF's
     "PAGE_SIZE": 100,
@@ -289,6 +314,10 @@ AXES_RESET_ON_SUCCESS = True
 AXES_HTTP_RESPONSE_CODE = 429
 AXES_LOCKOUT_TEMPLATE = "registration/locked_out.html"
 AXES_CLIENT_IP_CALLABLE = "proficiency.middleware.client_ip"
+# Password reset (proficiency.accounts): at most PASSWORD_RESET_LIMIT reset e-mails per
+# client address and per e-mail address in PASSWORD_RESET_WINDOW; then 429.
+PASSWORD_RESET_LIMIT = env.int("PASSWORD_RESET_LIMIT", default=5)
+PASSWORD_RESET_WINDOW = timedelta(minutes=env.int("PASSWORD_RESET_WINDOW_MINUTES", default=60))
 # Reverse proxies in front of gunicorn whose X-Forwarded-For is trusted (0: none).
 TRUSTED_PROXY_COUNT = env.int("TRUSTED_PROXY_COUNT", default=0)
 

@@ -1,14 +1,23 @@
 """URL configuration."""
 
 from django.contrib import admin
+from django.contrib.auth import urls as auth_urls
 from django.urls import include, path
 from drf_spectacular.views import SpectacularAPIView, SpectacularSwaggerSplitView
 
 from labs import views as lab_views
+from proficiency.accounts import PasswordResetView
 from proficiency.health import healthz
+from proficiency.views import api_docs_guard
 
 admin.site.site_header = "Proficiency testing — administration"
 admin.site.site_title = "PT administration"
+
+# django.contrib.auth's pages, with the password reset throttled (proficiency.accounts)
+AUTH_URLS = [
+    path("password_reset/", PasswordResetView.as_view(), name="password_reset"),
+    *(p for p in auth_urls.urlpatterns if p.name != "password_reset"),
+]
 
 urlpatterns = [
     # Load balancer / systemd / container health check: database and broker, no auth, no data.
@@ -24,9 +33,17 @@ urlpatterns = [
     path("", include("labs.urls")),
     path("", include("proficiency.coordinator_urls")),
     path("", include("analysis.reports.views")),
-    path("accounts/", include("django.contrib.auth.urls")),
+    path("accounts/", include(AUTH_URLS)),
     path("admin/", admin.site.urls),
-    path("api/schema/", SpectacularAPIView.as_view(), name="schema"),
+    # for signed-in people unless API_DOCS_PUBLIC (README, "Configuration")
+    path("api/schema/", api_docs_guard(SpectacularAPIView.as_view()), name="schema"),
     # The split view serves Swagger UI's start-up script as a file (CSP: no inline script).
-    path("api/docs/", SpectacularSwaggerSplitView.as_view(url_name="schema"), name="api-docs"),
+    path(
+        "api/docs/",
+        api_docs_guard(SpectacularSwaggerSplitView.as_view(url_name="schema")),
+        name="api-docs",
+    ),
 ]
+
+# a form field with a control character found by the CSRF check: 400 naming the field
+handler400 = "proficiency.middleware.bad_request"

@@ -12,7 +12,6 @@ from django.conf import settings
 from django.db.models import QuerySet
 from drf_spectacular.utils import OpenApiParameter, extend_schema
 from rest_framework import generics
-from rest_framework.parsers import FormParser, MultiPartParser
 from rest_framework.request import Request
 from rest_framework.response import Response
 
@@ -24,6 +23,7 @@ from labs.models import RawRecord
 from labs.raw import RawUploadLimit
 from labs.raw_selectors import raw_record_get, raw_records_of, raw_records_of_comparison
 from labs.raw_services import raw_record_upload, raw_request_limit, raw_upload_build
+from proficiency.parsers import FormParser, MultiPartParser
 
 
 def raw_records_in_scope(access: ComparisonAccess) -> QuerySet[RawRecord]:

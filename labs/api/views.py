@@ -16,7 +16,6 @@ from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiParameter, OpenApiResponse, extend_schema
 from rest_framework import generics, serializers
 from rest_framework.authentication import SessionAuthentication
-from rest_framework.parsers import FormParser, JSONParser, MultiPartParser
 from rest_framework.permissions import IsAuthenticated
 from rest_framework.renderers import BaseRenderer, JSONRenderer
 from rest_framework.request import Request
@@ -43,6 +42,7 @@ from labs.selectors import results_template
 from labs.services import submission_from_file, submission_from_records
 from proficiency.errors import RequestTooLarge, ValidationFailed
 from proficiency.models import ComparisonStatus, MeasurementPoint
+from proficiency.parsers import FormParser, JSONParser, MultiPartParser
 from proficiency.rendering import ValuesRendering
 from proficiency.serializers import NewComparisonSerializer
 

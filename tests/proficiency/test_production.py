@@ -29,7 +29,9 @@ def closed_port() -> int:
 def production_env(**extra: str) -> dict[str, str]:
     env = {k: v for k, v in os.environ.items() if not k.startswith(("DEBUG", "SECURE_"))}
     env.update(DEBUG="false", SECRET_KEY="x" * 60 + "-test-production-key",
-               ALLOWED_HOSTS="pt.example.org", **extra)  # fmt: skip
+               ALLOWED_HOSTS="pt.example.org",
+               EMAIL_URL="smtp+tls://pt:secret@mail.example.org:587")  # fmt: skip
+    env.update(extra)
     return env
 
 
@@ -178,6 +180,107 @@ def test_production_refuses_the_development_secret_key():
     assert "SECRET_KEY must be set when DEBUG is off." in result.stderr
 
 
+@pytest.mark.parametrize("email_url", [None, "consolemail://", "filemail:///tmp/pt-mail"])
+def test_production_refuses_an_email_backend_that_is_no_mail_server(email_url):
+    """The console backend (the default) would print valid password reset links into the
+    web log; with DEBUG off the service does not start without a mail server."""
+    env = production_env()
+    env.pop("EMAIL_URL")
+    if email_url:
+        env["EMAIL_URL"] = email_url
+    result = subprocess.run(
+        [sys.executable, "manage.py", "check"], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    assert result.returncode == 1
+    assert "ImproperlyConfigured: EMAIL_URL must name a mail server when DEBUG is off" in (
+        result.stderr
+    )
+
+
+@pytest.mark.parametrize(
+    ("email_url", "backend"),
+    [
+        ("smtp://mail.example.org:25", "django.core.mail.backends.smtp.EmailBackend"),
+        ("smtp+ssl://u:p@mail.example.org:465", "django.core.mail.backends.smtp.EmailBackend"),
+        ("dummymail://", "django.core.mail.backends.dummy.EmailBackend"),  # sends nothing
+    ],
+)
+def test_production_accepts_a_mail_server_or_sending_nothing(email_url, backend):
+    show = "from django.conf import settings as s; print(s.EMAIL_BACKEND)"
+    result = subprocess.run(
+        [sys.executable, "manage.py", "shell", "-c", show],
+        cwd=ROOT, env=production_env(EMAIL_URL=email_url), capture_output=True, text=True,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip().splitlines()[-1] == backend
+
+
+# --- the API in production: JSON only, documentation behind sign-in --------------------------
+
+SHOW_API = """
+import json
+from django.test import Client
+from rest_framework.settings import api_settings
+browser = "text/html,application/xhtml+xml,application/xml;q=0.9,*/*;q=0.8"
+renderers = [r.__name__ for r in api_settings.DEFAULT_RENDERER_CLASSES]
+c = Client(HTTP_HOST="pt.example.org")
+# (the browsable pages need the collected static files: not asked for here)
+one = len(renderers) == 1
+api = c.get("/api/v1/comparisons/", HTTP_ACCEPT=browser, secure=True) if one else None
+schema = c.get("/api/schema/?format=json", secure=True)
+docs = c.get("/api/docs/", secure=True) if schema.status_code == 403 else None
+print(json.dumps({
+    "renderers": renderers,
+    "api": api and [api.status_code, api["Content-Type"]],
+    "schema": [schema.status_code, schema["Content-Type"]],
+    "docs": docs and [docs.status_code, docs.get("Location", "")],
+}))
+"""
+
+
+def show_api(**extra: str) -> dict:
+    result = subprocess.run(
+        [sys.executable, "manage.py", "shell", "-c", SHOW_API],
+        cwd=ROOT, env=production_env(**extra), capture_output=True, text=True,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def test_production_api_has_no_browsable_pages_and_its_docs_need_sign_in():
+    """A browser asking the API gets JSON (the browsable API's HTML pages showed forms and
+    the parameters of every view); the schema and Swagger UI are for signed-in people."""
+    assert show_api() == {
+        "renderers": ["JSONRenderer"],
+        "api": [401, "application/json"],
+        "schema": [403, "application/json"],
+        "docs": [302, "/accounts/login/?next=/api/docs/"],
+    }
+
+
+def test_production_api_browsable_pages_and_public_docs_when_configured():
+    shown = show_api(API_BROWSABLE="true", API_DOCS_PUBLIC="true")
+    assert shown["renderers"] == ["JSONRenderer", "BrowsableAPIRenderer"]
+    assert shown["schema"] == [200, "application/vnd.oai.openapi+json"]
+
+
+@pytest.mark.django_db
+def test_api_docs_need_sign_in_unless_public(client, settings):
+    from tests.factories import UserFactory
+
+    settings.API_DOCS_PUBLIC = False
+    refused = client.get("/api/schema/?format=json")
+    assert refused.status_code == 403
+    assert refused.json() == {"detail": "Sign in to read the API schema.", "errors": []}
+    assert client.get("/api/docs/")["Location"] == "/accounts/login/?next=/api/docs/"
+    client.force_login(UserFactory())
+    assert client.get("/api/schema/?format=json").status_code == 200
+    assert client.get("/api/docs/").status_code == 200
+    client.logout()
+    settings.API_DOCS_PUBLIC = True
+    assert client.get("/api/schema/?format=json").status_code == 200
+
+
 # --- structured logs --------------------------------------------------------------------------
 
 
@@ -302,6 +405,11 @@ def test_gunicorn_config_has_at_least_two_workers_and_json_logs(monkeypatch):
     config = runpy.run_path(str(ROOT / "deploy" / "gunicorn.conf.py"))
     assert config["workers"] == 2
     assert config["wsgi_app"] == "proficiency.wsgi:application"
+    # threaded workers without keep-alive (tests/proficiency/test_slow_clients.py)
+    from gunicorn.workers.gthread import ThreadWorker
+
+    assert issubclass(config["worker_class"], ThreadWorker)
+    assert (config["threads"], config["keepalive"], config["READ_TIMEOUT"]) == (4, 0, 30.0)
     formatter = config["logconfig_dict"]["formatters"]["json"]["()"]
     assert formatter == "proficiency.logs.JsonFormatter"
 

@@ -156,6 +156,54 @@ def test_force_login_helpers_still_work_with_axes(client):
     assert client.get("/lab/").status_code == 200
 
 
+# --- password reset: throttled per address and per e-mail address ---------------------------
+
+RESET = "/accounts/password_reset/"
+
+
+@pytest.mark.django_db
+def test_password_reset_is_throttled_per_client_address(client, settings, mailoutbox):
+    assert settings.PASSWORD_RESET_LIMIT == 5
+    assert settings.PASSWORD_RESET_WINDOW.total_seconds() == 3600
+    for i in range(3):
+        UserFactory(username=f"reset{i}", email=f"reset{i}@lab.example")
+    emails = [f"reset{i % 3}@lab.example" if i < 3 else f"nobody{i}@lab.example" for i in range(7)]
+    statuses = [client.post(RESET, {"email": e}).status_code for e in emails]
+    assert statuses == [302, 302, 302, 302, 302, 429, 429]
+    refused = client.post(RESET, {"email": "reset0@lab.example"})
+    assert refused.status_code == 429
+    assert "Too many password resets (5)" in refused.content.decode()
+    assert sorted(m.to[0] for m in mailoutbox) == [f"reset{i}@lab.example" for i in range(3)]
+    # another address is not throttled by this one's attempts
+    other = client.post(RESET, {"email": "reset1@lab.example"}, REMOTE_ADDR="192.0.2.7")
+    assert other.status_code == 302 and len(mailoutbox) == 4
+    # a form error (no e-mail sent) does not count and is not refused
+    assert client.post(RESET, {"email": "not an address"}).status_code == 200
+
+
+@pytest.mark.django_db
+def test_password_reset_is_throttled_per_email_address(client, settings, mailoutbox):
+    UserFactory(username="target", email="target@lab.example")
+    addresses = [f"192.0.2.{i}" for i in range(1, 8)]
+    statuses = [
+        client.post(RESET, {"email": "Target@Lab.example "}, REMOTE_ADDR=a).status_code
+        for a in addresses
+    ]  # one e-mail address from seven client addresses; case and spaces do not matter
+    assert statuses == [302, 302, 302, 302, 302, 429, 429]
+    assert len(mailoutbox) == 5
+    # after the window, resets work again
+    cache.clear()
+    assert client.post(RESET, {"email": "target@lab.example"}).status_code == 302
+    assert len(mailoutbox) == 6
+
+
+@pytest.mark.django_db
+def test_password_reset_limit_comes_from_the_settings(client, settings, mailoutbox):
+    settings.PASSWORD_RESET_LIMIT = 1
+    assert client.post(RESET, {"email": "a@lab.example"}).status_code == 302
+    assert client.post(RESET, {"email": "b@lab.example"}).status_code == 429
+
+
 # --- API throttling ---------------------------------------------------------------------------
 
 
