@@ -49,9 +49,13 @@ def parse_table(
     if len(data) > max_bytes:
         raise fatal(f"the file is {human_size(len(data))}; the limit is {human_size(max_bytes)}")
     with _gc_paused():
-        sheet = read_sheet(data, filename=filename, content_type=content_type, max_rows=max_rows)
+        sheet = read_sheet(
+            data, filename=filename, content_type=content_type, max_rows=max_rows,
+            header_check=lambda header, row: check_header(header, lab_column=lab_column, row=row),
+        )  # fmt: skip
         names = check_header(sheet.header, lab_column=lab_column, row=sheet.header_row)
-        columns, numbers, cell_errors = sheet_columns(names, sheet.rows)
+        # The rows hold the cells under the named header cells only (readers.Shape).
+        columns, numbers, cell_errors = sheet_columns([n for n in names if n], sheet.rows)
         return validate_columns(
             columns,
             numbers,
@@ -59,6 +63,7 @@ def parse_table(
             lab_column=lab_column,
             context=context,
             errors=[*sheet.errors, *cell_errors],
+            dropped=sheet.dropped,
         )
 
 
