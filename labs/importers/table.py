@@ -169,8 +169,8 @@ def write_table(
 
     ``columns`` defaults to every column of formats.md §1, ``lab`` only when a
     row has one; mappings may carry other columns (scores). Numbers are written
-    in full precision with a decimal point; formula-like text gets a leading
-    quote. CSV is UTF-8 with a BOM (for spreadsheets) unless ``bom=False``.
+    in full precision with a decimal point; text loses its control characters,
+    then formula-like text gets a leading quote (:func:`~.values.escape_text`). CSV is UTF-8 with a BOM (for spreadsheets) unless ``bom=False``.
     """
     records = [r.as_record() if isinstance(r, ResultRow) else dict(r) for r in rows]
     names = list(columns) if columns is not None else _default_columns(records)
@@ -192,14 +192,14 @@ def _write_csv(names: list[str], table: list[list[object]], *, delimiter: str, b
 
 def _write_xlsx(names: list[str], table: list[list[object]]) -> bytes:
     from openpyxl import Workbook
-    from openpyxl.cell.cell import ILLEGAL_CHARACTERS_RE
 
     workbook = Workbook(write_only=True)
     sheet = workbook.create_sheet("results")
     sheet.append(names)
     for row in table:
-        # XML cannot hold control characters; they are dropped from text cells.
-        sheet.append([ILLEGAL_CHARACTERS_RE.sub("", v) if isinstance(v, str) else v for v in row])
+        # Text cells come from escape_text: no control characters (XML cannot hold them),
+        # and none starts with "=", which openpyxl would write as a formula.
+        sheet.append(row)
     buffer = io.BytesIO()
     workbook.save(buffer)
     return buffer.getvalue()
