@@ -17,7 +17,7 @@ import openpyxl
 import pytest
 from django.core.cache import cache
 from django.core.files.uploadedfile import SimpleUploadedFile
-from django.core.management import call_command
+from django.core.management import CommandError, call_command
 from django.db import connection
 from django.urls import reverse
 
@@ -283,3 +283,42 @@ def test_templates_and_exports_escape_a_hostile_device_name(world, tmp_path):
     call_command("export_results", "IMU-A-01", "--format", "xlsx", "--output", str(out))
     cell = _first_device_cell(out.read_bytes())
     assert (cell.data_type, cell.value) == ("s", ESCAPED_DEVICE)
+
+
+# --- the commands ---------------------------------------------------------------------------
+
+
+def test_pt_compare_lists_1000_problems_and_counts_the_rest(tmp_path):
+    path = tmp_path / "round.csv"
+    lines = ["lab," + HEADER.decode().strip()] + ["L01,MEMS 1,W,5,linear,420,8"] * 3000
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(CommandError) as err:
+        call_command("pt_compare", str(path), stdout=io.StringIO())
+    assert err.value.returncode == 2
+    listed = str(err.value).splitlines()
+    assert listed[0] == f"{path} was not analysed:"
+    assert listed[1] == "row 2, column axis: must be one of X, Y, Z, got 'W'"
+    assert len(listed) == 1 + 1000 + 1 and listed[-1] == "... and 2,000 more problems"
+
+
+@pytest.mark.django_db
+@pytest.mark.parametrize(
+    ("body", "expected"),
+    [
+        (b"L17," + WIDE_ROW.split(b"\n")[1] + b"\n",
+         [f"row 2: {WIDE.replace('6 columns', '7 columns')}; the file was not read further"]),
+        (b"L17,MEMS 1,W,5,linear,420,8\n" * 3000,
+         [f"row {n}, column axis: must be one of X, Y, Z, got 'W'" for n in range(2, 1002)]
+         + ["... and 2,000 more problems"]),
+    ],
+    ids=["wide-row", "3000-bad-rows"],
+)  # fmt: skip
+def test_import_results_prints_at_most_1000_problems(world, tmp_path, body, expected):
+    path = tmp_path / "round.csv"
+    path.write_bytes(b"lab," + HEADER + body)
+    err = io.StringIO()
+    with pytest.raises(CommandError) as caught:
+        call_command("import_results", "IMU-A-01", str(path), stderr=err)
+    assert caught.value.returncode == 2
+    assert err.getvalue().splitlines() == expected
+    assert stored_versions() == 2  # the world's two submissions only
