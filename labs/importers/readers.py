@@ -334,14 +334,15 @@ def _xlsx_records(
     """Cell values per row, read cell by cell; formula cells are recorded in ``formulas``
     (the first MAX_LISTED_ERRORS) and read as blank.
 
-    The worksheet's XML is parsed here with openpyxl's own cell parser, one cell at a time
-    and each cell dropped once read: openpyxl's row reader would hold every cell of a row
-    (millions in a hostile file) before handing it over. A row with more than
-    :data:`MAX_COLUMNS` cells, or a cell past that column, stops the reading. Once
-    ``shape`` knows the header, cells past it are not kept (only reported, if not blank).
+    The worksheet's XML is parsed here with openpyxl's own cell parser, each cell as its
+    element ends: openpyxl's row reader would parse every cell of a row (millions in a
+    hostile file) before handing it over. A row with more than :data:`MAX_COLUMNS`
+    cells, or a cell past that column, stops the reading; so a row never holds more
+    elements than that. Once ``shape`` knows the header, cells past it are not kept
+    (only reported, if not blank).
     """
     from openpyxl.utils import get_column_letter
-    from openpyxl.worksheet._reader import CELL_TAG, DATA_TAG, ROW_TAG, WorkSheetParser
+    from openpyxl.worksheet._reader import CELL_TAG, ROW_TAG, WorkSheetParser
     from openpyxl.xml.functions import iterparse
 
     shape = shape or Shape()
@@ -350,37 +351,26 @@ def _xlsx_records(
         None, worksheet._shared_strings, data_only=False, epoch=book.epoch,  # type: ignore[attr-defined]
         date_formats=book._date_formats, timedelta_formats=book._timedelta_formats,
     )  # fmt: skip
-    last = number = 0  # rows out of order or repeated are skipped, as openpyxl does
+    parse_cell, cap = parser.parse_cell, shape.cap
+    last = 0  # rows out of order or repeated are skipped, as openpyxl does
+    values: dict[int, object] = {}
+    found: list[tuple[int, str | None, str]] = []  # this row's formulas
+    count = outside = first_out = last_out = 0
+    first_value: object = None
+    parser.row_counter = shape.row = 1  # the row of cells without a coordinate (a guess)
     with worksheet._get_source() as source:  # type: ignore[attr-defined]
-        sheet_data = row_element = None
-        values: dict[int, object] = {}
-        count = outside = first_out = last_out = 0
-        first_value: object = None
-        for event, element in iterparse(source, events=("start", "end")):
+        for _, element in iterparse(source):
             tag = element.tag
-            if event == "start":
-                if tag == ROW_TAG:
-                    row_element = element
-                    number = _row_number(element.get("r"), parser.row_counter)
-                    parser.row_counter, parser.col_counter = number, 0
-                    shape.row, values, count, outside = number, {}, 0, 0
-                elif tag == DATA_TAG:
-                    sheet_data = element
-                continue
             if tag == CELL_TAG:
                 count += 1
-                cell = parser.parse_cell(element)
-                _drop(row_element, element)
+                cell = parse_cell(element)
                 column = cell["column"]
                 if count > MAX_COLUMNS or column > MAX_COLUMNS:
+                    shape.row = cell["row"]
                     raise shape.too_wide(shape.row, column if column > MAX_COLUMNS else None)
                 value = cell["value"]
                 if cell["data_type"] == "f":
-                    if shape.cap is None or len(formulas) < shape.cap:
-                        coordinate = element.get("r") or f"{get_column_letter(column)}{number}"
-                        formulas.append((number, column - 1, coordinate, str(value)))
-                    else:
-                        shape.formulas_dropped += 1
+                    found.append((column, element.get("r"), str(value)))
                     value = None
                 width = shape.width
                 if width is not None and column > width:
@@ -388,29 +378,33 @@ def _xlsx_records(
                         outside += 1
                         if outside == 1:
                             first_out, first_value = column, value
-                        last_out = max(last_out, column) if outside > 1 else column
+                        last_out = column if outside == 1 else max(last_out, column)
                     continue
                 values[column] = value
             elif tag == ROW_TAG:
-                _drop(sheet_data, element)
-                row_element = None
+                number = _row_number(element.get("r"), last)
+                element.clear()
+                row_values, row_formulas = values, found
+                row_outside, row_first, row_value, row_last = (
+                    outside, first_out, first_value, last_out
+                )  # fmt: skip
+                values, found, count, outside = {}, [], 0, 0
+                parser.col_counter, parser.row_counter = 0, number + 1
                 if number <= last:
                     continue
-                last = number
-                cells: list[object] = [None] * max(values, default=0)
-                for column, value in values.items():
+                last = shape.row = number
+                for column, coordinate, text in row_formulas:
+                    if cap is None or len(formulas) < cap:
+                        where = coordinate or f"{get_column_letter(column)}{number}"
+                        formulas.append((number, column - 1, where, text))
+                    else:
+                        shape.formulas_dropped += 1
+                cells: list[object] = [None] * max(row_values, default=0)
+                for column, value in row_values.items():
                     cells[column - 1] = value
-                if outside:
-                    shape.outside(number, first_out - 1, first_value, outside, last_out)
+                if row_outside:
+                    shape.outside(number, row_first - 1, row_value, row_outside, row_last)
                 yield number, cells
-
-
-def _drop(parent: object, element: object) -> None:
-    """Forget a parsed element: it is its parent's only child by then, so removal is O(1)."""
-    try:
-        parent.remove(element)  # type: ignore[attr-defined]
-    except (AttributeError, ValueError):  # no parent known, or not its child
-        element.clear()  # type: ignore[attr-defined]
 
 
 def _row_number(given: str | None, previous: int) -> int:

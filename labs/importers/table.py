@@ -170,7 +170,8 @@ def write_table(
     ``columns`` defaults to every column of formats.md §1, ``lab`` only when a
     row has one; mappings may carry other columns (scores). Numbers are written
     in full precision with a decimal point; text loses its control characters,
-    then formula-like text gets a leading quote (:func:`~.values.escape_text`). CSV is UTF-8 with a BOM (for spreadsheets) unless ``bom=False``.
+    then formula-like text gets a leading quote (:func:`~.values.escape_text`).
+    CSV is UTF-8 with a BOM (for spreadsheets) unless ``bom=False``.
     """
     records = [r.as_record() if isinstance(r, ResultRow) else dict(r) for r in rows]
     names = list(columns) if columns is not None else _default_columns(records)
