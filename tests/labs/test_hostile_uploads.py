@@ -322,3 +322,14 @@ def test_import_results_prints_at_most_1000_problems(world, tmp_path, body, expe
     assert caught.value.returncode == 2
     assert err.getvalue().splitlines() == expected
     assert stored_versions() == 2  # the world's two submissions only
+
+
+def test_web_grid_nul_in_a_note_is_a_form_error(client, web_staff):
+    data = {"action": "draft", "r0-sensitivity": "420", "r0-expanded_uncertainty": "8"}
+    data["r0-note"] = "bad\x00note"
+    response = client.post(reverse("labs:grid", args=["CMP-H"]), data)
+    body = visible(response)
+    assert response.status_code == 200
+    assert "Some entries are not valid; see the marked rows." in body
+    assert 'id="id_r0-note-error"' in body and "Null characters are not allowed." in body
+    assert not Submission.objects.exists()
