@@ -37,6 +37,7 @@ from django.db.models import Max
 from django.utils import timezone
 
 from labs.importers import ImportErrors, PointKey, ResultRow, RowError, TableContext
+from labs.importers.errors import MAX_LISTED_ERRORS, more_problems
 from labs.importers.stream import Chunk, read_chunks
 from labs.models import Participant, Result, Submission
 from labs.selectors import table_context
@@ -45,7 +46,6 @@ from proficiency.errors import NotVisible, StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus
 
 CHUNK_ROWS = 50_000
-MAX_LISTED_ERRORS = 1_000
 #: A coordinator imports into an open round, or a closed one not yet analysed (a
 #: national programme collecting results outside the service, a past round migrated).
 IMPORTABLE = (ComparisonStatus.OPEN, ComparisonStatus.CLOSED)
@@ -61,9 +61,11 @@ class ImportRefused(ValidationFailed):
     def __init__(self, errors: list[RowError], total: int) -> None:
         listed = f" (the first {len(errors):,} are listed)" if total > len(errors) else ""
         s = "s" if total != 1 else ""
+        more = more_problems(total - len(errors))
         super().__init__(
             f"The results were not stored: {total:,} problem{s} found{listed}.",
-            errors=[e.as_dict() for e in errors],
+            errors=[e.as_dict() for e in errors]
+            + ([{"row": None, "field": None, "message": more}] if more else []),
         )
         self.row_errors, self.total = errors, total
 
@@ -110,7 +112,7 @@ def results_import(
             for chunk in read_chunks(stream, filename=name, context=state.context, chunk_rows=rows):
                 state.take(chunk)
         except ImportErrors as exc:  # the file cannot be read at all (header, encoding)
-            state.errors.add(exc.errors)
+            state.errors.add(exc.errors, exc.total)
         finally:
             state.writer.close()
         summary = state.finish(name)
@@ -142,8 +144,9 @@ class _Errors:
         self.cap, self.total = cap, 0
         self.listed: list[RowError] = []
 
-    def add(self, errors: list[RowError]) -> None:
-        self.total += len(errors)
+    def add(self, errors: list[RowError], total: int | None = None) -> None:
+        """``total``: how many problems ``errors`` stands for, when it lists only the first."""
+        self.total += len(errors) if total is None else total
         room = self.cap - len(self.listed)
         if room > 0:
             self.listed.extend(sorted(errors, key=lambda e: e.row or 0)[:room])

@@ -254,9 +254,11 @@ def results_sql(connection: BaseDatabaseWrapper, *, copy: bool) -> str:
 
 
 def _import_failed(exc: ImportErrors) -> ValidationFailed:
-    n = len(exc.errors)
+    """At most MAX_LISTED_ERRORS problems are listed, then one entry counting the rest."""
+    n = exc.total
+    listed = f" (the first {len(exc.errors):,} are listed)" if exc.more else ""
     return ValidationFailed(
-        f"The results were not stored: {n} problem{'s' if n != 1 else ''} found.",
+        f"The results were not stored: {n:,} problem{'s' if n != 1 else ''} found{listed}.",
         errors=exc.as_dicts(),
     )
 

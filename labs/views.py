@@ -185,7 +185,7 @@ def results_grid(request: HttpRequest, code: str) -> HttpResponse:
     form = _grid_form(participant, request.POST if request.method == "POST" else None)
     if request.method == "POST":
         if not form.is_valid():
-            form.summary.append("Some entries are too long; see the marked rows.")
+            form.summary.append("Some entries are not valid; see the marked rows.")
         elif _grid_save(request, participant, form):
             return _grid_saved(request, participant)
     template = "labs/_grid_form.html" if request.htmx else "labs/grid.html"

@@ -60,7 +60,10 @@ AUTH_ERRORS = {
 }
 NOT_VISIBLE = {404: _error("No such comparison, or not visible to you (also other labs')")}
 SUBMIT_ERRORS = {
-    400: _error("The results were refused; `errors` lists every bad row and field"),
+    400: _error(
+        "The results were refused; `errors` lists the bad rows and fields (the first 1,000, "
+        "then one entry without row or field counting the rest)"
+    ),
     403: _error("You coordinate this comparison but are not a participant"),
     409: _error("The comparison is not open, or its deadline has passed"),
     413: _error("The request body or the file is too large"),

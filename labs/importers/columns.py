@@ -12,10 +12,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 
-from .errors import ImportErrors, RowError
+from .errors import MAX_LISTED_ERRORS, ImportErrors, RowError
 from .schema import (
     AXES,
     BENCHES,
@@ -26,6 +25,7 @@ from .schema import (
     TableContext,
 )
 from .validate import (
+    Refused,
     _check_point,
     _device,
     _direction,
@@ -38,13 +38,20 @@ from .validate import (
     _unit,
     cells_to_record,
     find_duplicates,
+    magnitude_problems,
 )
-from .values import CANONICAL_UNIT, MG_PER_LSB, mg_per_lsb_to_canonical
+from .values import (
+    CANONICAL_UNIT,
+    MAX_MAGNITUDE,
+    MG_PER_LSB,
+    MIN_MAGNITUDE,
+    mg_per_lsb_to_canonical,
+)
 
 Cell = tuple[object, tuple[tuple[str | None, str], ...]]
 Compute = Callable[..., object]  # (check) or, for a dependent column, (check, dependency)
 
-_INF = math.inf
+_MIN, _MAX = MIN_MAGNITUDE, MAX_MAGNITUDE
 _NEW = object.__new__
 #: The slot setters of ResultRow in field order: building 100,000 rows through them
 #: skips the frozen dataclass ``__init__`` and takes about half the time.
@@ -66,12 +73,23 @@ class _Validator:
         columns: Mapping[str, Sequence[object]],
         numbers: Sequence[int],
         decimal_comma: bool,
+        cap: int | None = None,
     ) -> None:
         self.columns = columns
         self.numbers = numbers
         self.decimal_comma = decimal_comma
         self.bad = bytearray(len(numbers))
         self.errors: list[RowError] = []
+        #: Each pass over a column meets the rows in order: past ``cap`` problems in a
+        #: pass, the rest are only counted (``dropped``). The first ``cap`` problems of
+        #: the whole table in row order are still all kept (a pass keeps its last row whole).
+        self.cap = cap
+        self.dropped = 0
+        self._kept = 0
+        self._last_row: int | None = None
+
+    def new_pass(self) -> None:
+        self._kept, self._last_row = 0, None
 
     def raw(self, field: str) -> Sequence[object]:
         return self.columns.get(field) or [None] * len(self.numbers)
@@ -89,13 +107,17 @@ class _Validator:
     def precise(self, field: str, raw: object, compute: Compute) -> Cell:
         """The per-cell check of :mod:`.validate` on one value: (value, problems)."""
         check = _RowCheck({field: raw}, 0, self.decimal_comma)
-        value = compute(check)
+        try:
+            value = compute(check)
+        except Refused:  # a control character: its error is recorded
+            value = None
         return value, tuple((e.field, e.message) for e in check.errors)
 
     def column(
         self, field: str, compute: Compute, depends: Sequence[object] | None = None
     ) -> list[object]:
         """``compute`` on every cell of ``field``, once per distinct (dependency, value)."""
+        self.new_pass()
         if depends is None and (broadcast := self.absent(field, compute)) is not None:
             return broadcast
         memo: dict[object, Cell] = {}
@@ -118,6 +140,7 @@ class _Validator:
 
     def number_column(self, field: str, compute: Compute) -> list[object]:
         """Plain positive finite numbers through ``float()``; the rest as :meth:`column`."""
+        self.new_pass()
         if (broadcast := self.absent(field, compute)) is not None:
             return broadcast
         raws = self.raw(field)
@@ -136,9 +159,17 @@ class _Validator:
                 out[i] = value
         return out
 
-    def fail(self, index: int, row: int, problems: Iterable[tuple[str | None, str]]) -> None:
+    def fail(self, index: int, row: int, problems: Sequence[tuple[str | None, str]]) -> None:
         self.bad[index] = 1
-        self.errors.extend(RowError(row, field, message) for field, message in problems)
+        self.note(row, problems)
+
+    def note(self, row: int, problems: Sequence[tuple[str | None, str]]) -> None:
+        if self.cap is None or self._kept < self.cap or row == self._last_row:
+            self.errors.extend(RowError(row, field, message) for field, message in problems)
+            self._kept += len(problems)
+            self._last_row = row
+        else:
+            self.dropped += len(problems)
 
 
 def _bind(compute: Compute, depends: Sequence[object] | None, i: int) -> Compute:
@@ -149,17 +180,17 @@ def _bind(compute: Compute, depends: Sequence[object] | None, i: int) -> Compute
 
 
 def _fast_number(raw: object, decimal_comma: bool) -> float | None:
-    """``raw`` as a float when it is plainly a finite number > 0, else ``None``.
+    """``raw`` as a float when it is plainly a number within the safe range, else ``None``.
 
-    Without ``_`` and once a single decimal comma is made a point, text that
-    ``float()`` reads as a finite number is exactly what the precise parser's
-    pattern accepts (``float`` strips the same whitespace); anything else,
-    blanks included, goes to the precise check.
+    Printable ASCII without ``_``, once a single decimal comma is made a point, text
+    that ``float()`` reads as a finite number is exactly what the precise parser's
+    pattern accepts (``float`` strips the same whitespace); anything else (blanks,
+    other digits than ASCII, control characters) goes to the precise check.
     """
     kind = type(raw)
     if kind is float:
-        return raw if 0.0 < raw < _INF else None  # type: ignore[operator,return-value]
-    if kind is not str or "_" in raw:  # type: ignore[operator]
+        return raw if _MIN <= raw <= _MAX else None  # type: ignore[operator,return-value]
+    if kind is not str or "_" in raw or not (raw.isascii() and raw.isprintable()):  # type: ignore[operator,union-attr]
         return None
     text: str = raw  # type: ignore[assignment]
     if "," in text:
@@ -170,7 +201,7 @@ def _fast_number(raw: object, decimal_comma: bool) -> float | None:
         value = float(text)
     except ValueError:
         return None
-    return value if 0.0 < value < _INF else None
+    return value if _MIN <= value <= _MAX else None
 
 
 def _field_values(v: _Validator, context: TableContext | None, lab_column: LabColumn) -> dict:
@@ -210,21 +241,23 @@ def validate_columns(
     lab_column: LabColumn = "optional",
     context: TableContext | None = None,
     errors: Iterable[RowError] = (),
+    dropped: int = 0,
 ) -> list[ResultRow]:
     """Validate a table given as columns (field -> cells, aligned with ``numbers``).
 
-    Same contract as :func:`labs.importers.validate.validate_records`.
+    Same contract as :func:`labs.importers.validate.validate_records`; ``dropped``
+    counts problems found before (with ``errors``) but not listed. At most
+    MAX_LISTED_ERRORS problems are listed, the first in row order.
     """
     found = list(errors)
-    rows, problems = check_columns(
-        columns, numbers, decimal_comma=decimal_comma, lab_column=lab_column, context=context
-    )
-    found.extend(problems)
+    v = _Validator(columns, numbers, decimal_comma, cap=MAX_LISTED_ERRORS)
+    rows = _assemble(v, _field_values(v, context, lab_column), context)
+    found.extend(v.errors)
     found.extend(find_duplicates(rows))
-    if not rows and not found:
+    if not rows and not found and not dropped:
         found.append(RowError(None, None, "the table has no data rows"))
-    if found:
-        raise ImportErrors(sorted(found, key=_error_order))
+    if found or dropped:
+        raise ImportErrors(sorted(found, key=_error_order), total=len(found) + v.dropped + dropped)
     return rows
 
 
@@ -257,6 +290,7 @@ def _assemble(
     table = zip(v.numbers, v.bad, *(values[f] for f in fields), strict=True)
     check_points = context is not None and context.points is not None
     rows = []
+    v.new_pass()
     for number, bad, *cells in table:
         if bad:
             continue
@@ -271,12 +305,15 @@ def _assemble(
             expanded, sens = converted * expanded / sens, converted
             unit, original_unit = CANONICAL_UNIT, MG_PER_LSB
         k = DEFAULT_COVERAGE_FACTOR if k is None else k
+        if not (_MIN <= sens <= _MAX and _MIN <= expanded <= _MAX and _MIN <= expanded / k <= _MAX):
+            v.note(number, magnitude_problems(sens, expanded, k, original_unit))
+            continue
         row = _result_row(number, device, axis, freq, bench, direction, amp, sens, unit,
                           expanded, k, dof, lab, note, original_unit)  # fmt: skip
         if check_points and len(context.matching_points(row)) != 1:  # type: ignore[union-attr]
             check = _RowCheck({}, number, v.decimal_comma)
             _check_point(check, row, context)
-            v.errors.extend(check.errors)
+            v.note(number, [(e.field, e.message) for e in check.errors])
             continue
         rows.append(row)
     return rows

@@ -36,18 +36,43 @@ class RowError:
         return f"{', '.join(where)}: {self.message}" if where else self.message
 
 
-class ImportErrors(Exception):
-    """The table was rejected; ``errors`` lists every problem found."""
+#: Every listing of problems (API, web pages, commands) stops here, with a count of the rest.
+MAX_LISTED_ERRORS = 1_000
 
-    def __init__(self, errors: Iterable[RowError]) -> None:
-        self.errors: list[RowError] = list(errors)
+
+class ImportErrors(Exception):
+    """The table was rejected; ``errors`` lists the first :data:`MAX_LISTED_ERRORS` problems
+    found (in row order) and ``total`` counts all of them."""
+
+    def __init__(self, errors: Iterable[RowError], total: int | None = None) -> None:
+        found = list(errors)
+        self.total: int = max(len(found), total or 0)
+        self.errors: list[RowError] = found[:MAX_LISTED_ERRORS]
         super().__init__(self.errors)
 
+    @property
+    def more(self) -> int:
+        """How many problems are counted but not listed."""
+        return self.total - len(self.errors)
+
+    def more_line(self) -> str | None:
+        """``... and 2,599,000 more problems`` when some are not listed."""
+        return more_problems(self.more)
+
     def __str__(self) -> str:
-        return "\n".join(str(error) for error in self.errors)
+        lines = [str(error) for error in self.errors]
+        more = self.more_line()
+        return "\n".join([*lines, more] if more else lines)
 
     def as_dicts(self) -> list[dict[str, int | str | None]]:
-        return [error.as_dict() for error in self.errors]
+        """The listed problems, then an entry without row or field counting the rest."""
+        listed = [error.as_dict() for error in self.errors]
+        more = self.more_line()
+        return [*listed, {"row": None, "field": None, "message": more}] if more else listed
+
+
+def more_problems(n: int) -> str | None:
+    return f"... and {n:,} more problem{'s' if n != 1 else ''}" if n > 0 else None
 
 
 def fatal(message: str, *, row: int | None = None, field: str | None = None) -> ImportErrors:

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import codecs
 import csv
-import io
 import itertools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -25,11 +24,16 @@ from .readers import (
     _OLE_MAGIC,
     _TEMPLATE_HINT,
     _ZIP_MAGIC,
+    XLSX_DAMAGE,
+    Shape,
     _blank_row,
     _formula_errors,
     _pick_worksheet,
     _xlsx_records,
+    counted_lines,
+    csv_records,
     inspect_zip,
+    open_workbook,
     sniff_delimiter,
 )
 from .schema import LabColumn, ResultRow, TableContext
@@ -73,10 +77,12 @@ def read_chunks(
         return
     if (filename or "").lower().endswith(".xlsx"):
         raise fatal("the file name ends in .xlsx but the content is not an XLSX workbook")
-    records, decimal_comma = _csv_records(head, stream)
+    shape = Shape(cap=None)  # a chunk's problems are all counted
+    records, decimal_comma = _csv_records(head, stream, shape)
     number, header = _header(records)
     names = check_header(header, lab_column=lab_column, row=number)
-    yield from _chunks(records, names, decimal_comma, lab_column, context, chunk_rows)
+    shape.set_header(header, number)
+    yield from _chunks(records, names, decimal_comma, lab_column, context, chunk_rows, shape)
 
 
 def _header(records: Records) -> tuple[int, list[object]]:
@@ -93,19 +99,25 @@ def _chunks(
     lab_column: LabColumn,
     context: TableContext | None,
     chunk_rows: int,
+    shape: Shape,
     drain: Callable[[], list[RowError]] = list,
 ) -> Iterator[Chunk]:
-    """``drain`` returns the problems found while reading (XLSX formula cells) since last."""
+    """``drain`` returns the problems found while reading (XLSX formula cells) since last;
+    rows are cut to the header's named cells (``shape``), whose row errors go along."""
     batch: list[tuple[int, list[object]]] = []
-    for record in records:
-        if not _blank_row(record[1]):
-            batch.append(record)
+    named = [name for name in names if name]
+    shape.errors = found = []
+    fit = shape.fit
+    for number, cells in records:
+        if not _blank_row(cells):
+            batch.append((number, fit(number, cells)))
         if len(batch) >= chunk_rows:
-            yield _check(batch, names, decimal_comma, lab_column, context, drain())
-            batch = []
-    leftover = drain()
+            yield _check(batch, named, decimal_comma, lab_column, context, [*found, *drain()])
+            batch, shape.errors = [], []
+            found = shape.errors
+    leftover = [*found, *drain()]
     if batch or leftover:
-        yield _check(batch, names, decimal_comma, lab_column, context, leftover)
+        yield _check(batch, named, decimal_comma, lab_column, context, leftover)
 
 
 def _check(
@@ -129,7 +141,7 @@ def _check(
 # --- CSV -------------------------------------------------------------------------------------
 
 
-def _csv_records(head: bytes, stream: BinaryIO) -> tuple[Records, bool]:
+def _csv_records(head: bytes, stream: BinaryIO, shape: Shape) -> tuple[Records, bool]:
     """Records of a UTF-8 CSV stream; the delimiter is sniffed on the first non-empty line."""
     lines = _lines(itertools.chain([head + stream.readline()], stream))
     first: list[str] = []
@@ -138,17 +150,9 @@ def _csv_records(head: bytes, stream: BinaryIO) -> tuple[Records, bool]:
         if line.strip():
             break
     delimiter = sniff_delimiter(first[-1] if first else "")
-    reader = csv.reader(itertools.chain(first, lines), delimiter=delimiter, strict=True)
-    return _read(reader), delimiter == ";"
-
-
-def _read(reader: Iterator[list[str]]) -> Records:
-    number = 0
-    try:
-        for number, cells in enumerate(reader, start=1):
-            yield number, list(cells)
-    except csv.Error as error:
-        raise fatal(f"the CSV is malformed: {error}", row=number + 1) from None
+    counted = counted_lines(itertools.chain(first, lines), delimiter, shape)
+    reader = csv.reader(counted, delimiter=delimiter, strict=True)
+    return csv_records(reader, shape), delimiter == ";"
 
 
 def _lines(raw_lines: Iterator[bytes]) -> Iterator[str]:
@@ -184,23 +188,22 @@ def _xlsx_chunks(
 ) -> Iterator[Chunk]:
     """The worksheet read row by row (openpyxl read-only); the ZIP checks of an upload apply."""
     inspect_zip(data)
-    from openpyxl import load_workbook
-
-    try:
-        workbook = load_workbook(io.BytesIO(data), read_only=True, data_only=False)
-    except Exception as error:  # openpyxl raises many types for a damaged file
-        raise fatal(f"the workbook cannot be read: {error}") from None
+    workbook = open_workbook(data)
     try:
         found: list[tuple[int, int, str, str]] = []
-        records = _xlsx_records(_pick_worksheet(workbook), found)
+        shape = Shape(cap=None)  # a chunk's problems are all counted
+        records = _xlsx_records(_pick_worksheet(workbook), found, shape)
         number, header = _header(records)
         names = check_header(header, lab_column=lab_column, row=number)
+        shape.set_header(header, number)
 
         def drain() -> list[RowError]:
             errors = _formula_errors(found, header)
             found.clear()
             return errors
 
-        yield from _chunks(records, names, False, lab_column, context, chunk_rows, drain)
+        yield from _chunks(records, names, False, lab_column, context, chunk_rows, shape, drain)
+    except XLSX_DAMAGE as error:
+        raise fatal(f"the worksheet cannot be read: {error}") from None
     finally:
         workbook.close()

@@ -49,9 +49,13 @@ def parse_table(
     if len(data) > max_bytes:
         raise fatal(f"the file is {human_size(len(data))}; the limit is {human_size(max_bytes)}")
     with _gc_paused():
-        sheet = read_sheet(data, filename=filename, content_type=content_type, max_rows=max_rows)
+        sheet = read_sheet(
+            data, filename=filename, content_type=content_type, max_rows=max_rows,
+            header_check=lambda header, row: check_header(header, lab_column=lab_column, row=row),
+        )  # fmt: skip
         names = check_header(sheet.header, lab_column=lab_column, row=sheet.header_row)
-        columns, numbers, cell_errors = sheet_columns(names, sheet.rows)
+        # The rows hold the cells under the named header cells only (readers.Shape).
+        columns, numbers, cell_errors = sheet_columns([n for n in names if n], sheet.rows)
         return validate_columns(
             columns,
             numbers,
@@ -59,6 +63,7 @@ def parse_table(
             lab_column=lab_column,
             context=context,
             errors=[*sheet.errors, *cell_errors],
+            dropped=sheet.dropped,
         )
 
 
@@ -164,8 +169,9 @@ def write_table(
 
     ``columns`` defaults to every column of formats.md §1, ``lab`` only when a
     row has one; mappings may carry other columns (scores). Numbers are written
-    in full precision with a decimal point; formula-like text gets a leading
-    quote. CSV is UTF-8 with a BOM (for spreadsheets) unless ``bom=False``.
+    in full precision with a decimal point; text loses its control characters,
+    then formula-like text gets a leading quote (:func:`~.values.escape_text`).
+    CSV is UTF-8 with a BOM (for spreadsheets) unless ``bom=False``.
     """
     records = [r.as_record() if isinstance(r, ResultRow) else dict(r) for r in rows]
     names = list(columns) if columns is not None else _default_columns(records)
@@ -187,14 +193,14 @@ def _write_csv(names: list[str], table: list[list[object]], *, delimiter: str, b
 
 def _write_xlsx(names: list[str], table: list[list[object]]) -> bytes:
     from openpyxl import Workbook
-    from openpyxl.cell.cell import ILLEGAL_CHARACTERS_RE
 
     workbook = Workbook(write_only=True)
     sheet = workbook.create_sheet("results")
     sheet.append(names)
     for row in table:
-        # XML cannot hold control characters; they are dropped from text cells.
-        sheet.append([ILLEGAL_CHARACTERS_RE.sub("", v) if isinstance(v, str) else v for v in row])
+        # Text cells come from escape_text: no control characters (XML cannot hold them),
+        # and none starts with "=", which openpyxl would write as a formula.
+        sheet.append(row)
     buffer = io.BytesIO()
     workbook.save(buffer)
     return buffer.getvalue()

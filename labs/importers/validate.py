@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from typing import TypeVar
 
 from .errors import ImportErrors, RowError
 from .schema import (
@@ -20,17 +22,22 @@ from .schema import (
 from .values import (
     CANONICAL_UNIT,
     MG_PER_LSB,
+    RANGE_TEXT,
     ValueProblem,
     cell_text,
+    control_problem,
     display,
     format_number,
+    in_range,
     is_blank,
+    magnitude_problem,
     mg_per_lsb_to_canonical,
     normalise_unit,
     parse_number,
 )
 
 _ALLOWED = ", ".join(COLUMNS)
+T = TypeVar("T")
 
 
 def normalise_name(name: object) -> str:
@@ -88,6 +95,10 @@ def cells_to_record(
     return record, errors
 
 
+class Refused(Exception):
+    """A cell that no check may read further (a control character); its error is recorded."""
+
+
 class _RowCheck:
     """Reads one record's fields, collecting a :class:`RowError` per bad column."""
 
@@ -100,13 +111,23 @@ class _RowCheck:
     def fail(self, field: str | None, message: str) -> None:
         self.errors.append(RowError(self.row, field, message))
 
+    def raw(self, field: str) -> object:
+        """The cell as given; a control character records its error and raises :class:`Refused`."""
+        raw = self.record.get(field)
+        if type(raw) is str and not raw.isprintable():
+            problem = control_problem(raw)
+            if problem is not None:
+                self.fail(field, problem)
+                raise Refused(field)
+        return raw
+
     def text(self, field: str) -> str:
-        return cell_text(self.record.get(field))
+        return cell_text(self.raw(field))
 
     def number(
         self, field: str, *, required: bool = False, allow_inf: bool = False
     ) -> float | None:
-        raw = self.record.get(field)
+        raw = self.raw(field)
         if is_blank(raw):
             if required:
                 self.fail(field, "is required")
@@ -119,7 +140,17 @@ class _RowCheck:
         if not value > 0:
             self.fail(field, f"must be > 0, got {display(raw)}")
             return None
+        if not (allow_inf and value == math.inf) and (problem := magnitude_problem(value)):
+            self.fail(field, problem)
+            return None
         return value
+
+    def run(self, compute: Callable[..., T], *args: object) -> T | None:
+        """``compute(self, *args)``; ``None`` when a cell was refused outright."""
+        try:
+            return compute(self, *args)
+        except Refused:
+            return None
 
     def choice(
         self, field: str, allowed: Sequence[str], universe: Sequence[str], what: str = ""
@@ -195,7 +226,7 @@ def _direction(check: _RowCheck, bench: str | None, context: TableContext | None
 
 def _uncertainty(check: _RowCheck) -> tuple[float, bool] | None:
     """Expanded uncertainty and whether it was given in % of the sensitivity."""
-    raw = check.record.get("expanded_uncertainty")
+    raw = check.raw("expanded_uncertainty")
     if isinstance(raw, str) and raw.strip().endswith("%"):
         shown = raw.strip()
         try:
@@ -252,6 +283,29 @@ def _note(check: _RowCheck) -> str:
     return note
 
 
+def _number(
+    check: _RowCheck, field: str, required: bool = False, allow_inf: bool = False
+) -> float | None:
+    return check.number(field, required=required, allow_inf=allow_inf)
+
+
+def magnitude_problems(
+    sensitivity: float, expanded: float, k: float, original_unit: str | None
+) -> list[tuple[str, str]]:
+    """The derived values the statistics use, checked like the cells (README, "Results
+    tables"): U once made absolute, u = U/k, and both after a conversion from mg/LSB."""
+    problems = []
+    after = f" after the conversion from {original_unit}" if original_unit else ""
+    bounds = f"must be {RANGE_TEXT} (the range the statistics can carry)"
+    if not in_range(sensitivity):
+        problems.append(("sensitivity", f"is {sensitivity:.6g}{after}; it {bounds}"))
+    if not in_range(expanded):
+        problems.append(("expanded_uncertainty", f"U is {expanded:.6g}{after}; it {bounds}"))
+    elif not in_range(expanded / k):
+        problems.append(("expanded_uncertainty", f"gives u = U/k = {expanded / k:.6g}; u {bounds}"))
+    return problems
+
+
 def _check_point(check: _RowCheck, row: ResultRow, context: TableContext | None) -> None:
     if context is None or context.points is None:
         return
@@ -282,24 +336,25 @@ def validate_record(
 ) -> ResultRow | list[RowError]:
     """One record (column name -> cell value) to a :class:`ResultRow` or its errors."""
     check = _RowCheck(record, row, decimal_comma)
-    device = _device(check, context)
-    axis = check.choice("axis", context.axes if context else AXES, AXES)
-    frequency = _frequency(check, context)
+    run = check.run
+    device = run(_device, context)
+    axis = run(_RowCheck.choice, "axis", context.axes if context else AXES, AXES)
+    frequency = run(_frequency, context)
     benches = context.benches if context else BENCHES
-    bench = check.choice("bench", benches, tuple(dict.fromkeys((*BENCHES, *benches))))
-    direction = _direction(check, bench, context)
-    amplitude = check.number("amplitude_m_s2")
-    sensitivity = check.number("sensitivity", required=True)
-    unit = _unit(check, device, context)
-    uncertainty = _uncertainty(check)
-    coverage = check.number("coverage_factor")
-    dof = check.number("dof", allow_inf=True)
-    lab = _lab(check, lab_column)
-    note = _note(check)
+    bench = run(_RowCheck.choice, "bench", benches, tuple(dict.fromkeys((*BENCHES, *benches))))
+    direction = run(_direction, bench, context)
+    amplitude = run(_number, "amplitude_m_s2")
+    sensitivity = run(_number, "sensitivity", True)
+    unit = run(_unit, device, context)
+    uncertainty = run(_uncertainty)
+    coverage = run(_number, "coverage_factor")
+    dof = run(_number, "dof", False, True)
+    lab = run(_lab, lab_column)
+    note = run(_note)
     if check.errors:
         return check.errors
     assert device and axis and frequency and bench and direction and sensitivity and unit
-    assert uncertainty is not None
+    assert uncertainty is not None and note is not None
     value, relative = uncertainty
     expanded = sensitivity * value / 100 if relative else value
     original_unit = None
@@ -308,11 +363,16 @@ def validate_record(
         converted = mg_per_lsb_to_canonical(sensitivity)
         expanded, sensitivity = converted * expanded / sensitivity, converted
         unit, original_unit = CANONICAL_UNIT, MG_PER_LSB
+    k = DEFAULT_COVERAGE_FACTOR if coverage is None else coverage
+    for field, message in magnitude_problems(sensitivity, expanded, k, original_unit):
+        check.fail(field, message)
+    if check.errors:
+        return check.errors
     result = ResultRow(
         row=row, device=device, axis=axis, frequency_hz=frequency, bench=bench,
         direction=direction, amplitude_m_s2=amplitude, sensitivity=sensitivity, unit=unit,
         expanded_uncertainty=expanded,
-        coverage_factor=DEFAULT_COVERAGE_FACTOR if coverage is None else coverage,
+        coverage_factor=k,
         dof=dof, lab=lab, note=note, original_unit=original_unit,
     )  # fmt: skip
     _check_point(check, result, context)

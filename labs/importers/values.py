@@ -12,11 +12,25 @@ import math
 import re
 from collections.abc import Iterable
 
-#: A text cell starting with one of these is executed by some spreadsheets.
-FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r")
-_ESCAPED_FOLLOWERS = (*FORMULA_TRIGGERS, "'")
+#: A text cell starting with one of these (after spaces) is executed by some spreadsheets
+#: (OWASP CSV injection), the full-width forms by East Asian editions of Excel.
+FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r", "\n", "\uff1d", "\uff0b", "\uff0d", "\uff20")
 
-_NUMBER_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+#: ASCII digits only: ``\d`` and ``float()`` would also take "٤٢٠" or "４２０" as 420.
+_NUMBER_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+#: Characters no cell may hold: control characters other than tab, line feed and carriage
+#: return (PostgreSQL cannot store NUL, XML none of them), and lone UTF-16 surrogates
+#: (not encodable as UTF-8), which JSON can carry.
+CONTROL_RE = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f-\x9f\ud800-\udfff]")
+
+#: Every number of a result, and u = U/k, must lie within [MIN_MAGNITUDE, MAX_MAGNITUDE]
+#: (README, "Results tables"): the statistics form at most fourth powers of u and squares of
+#: ratios such as x/u over up to a million results, (1e30/1e-30)**4 = 1e240 with room to
+#: spare for sums and a factor 1/dof, all well inside double precision (2.2e-308, 1.8e308).
+MIN_MAGNITUDE = 1e-30
+MAX_MAGNITUDE = 1e30
+RANGE_TEXT = "between 1e-30 and 1e30"
+
 _INFINITY = {"inf", "+inf", "infinity", "+infinity"}
 _NON_FINITE = {"nan", "+nan", "-nan", "-inf", "-infinity", *_INFINITY}
 
@@ -32,22 +46,59 @@ class ValueProblem(ValueError):
     """A cell value that does not fit; the message follows the column name."""
 
 
-def escape_text(text: str) -> str:
-    """Prefix formula-like text with a single quote (OWASP CSV injection).
+def _formula_like(text: str) -> bool:
+    return text[:1] in FORMULA_TRIGGERS or text.lstrip(" ")[:1] in FORMULA_TRIGGERS
 
-    A leading quote that :func:`unescape_text` would strip is escaped too, so
-    that ``unescape_text(escape_text(s)) == s`` for every string.
+
+def _escaped_follower(text: str) -> bool:
+    """What may follow the quote :func:`escape_text` puts in front."""
+    return bool(text) and (_formula_like(text) or text[:1] == "'")
+
+
+def escape_text(text: str) -> str:
+    """Text safe in a spreadsheet cell (OWASP CSV injection).
+
+    Control characters (:data:`CONTROL_RE`) are removed first, then formula-like
+    text (a leading ``=``, ``+``, ``-``, ``@``, tab, CR, LF or a full-width form, also
+    after spaces) is prefixed with a single quote. A leading quote that
+    :func:`unescape_text` would strip is escaped too, so that
+    ``unescape_text(escape_text(s)) == s`` for every string without control characters.
     """
-    if text[:1] in FORMULA_TRIGGERS or (text[:1] == "'" and text[1:2] in _ESCAPED_FOLLOWERS):
+    text = CONTROL_RE.sub("", text)
+    if _formula_like(text) or (text[:1] == "'" and _escaped_follower(text[1:])):
         return "'" + text
     return text
 
 
 def unescape_text(text: str) -> str:
     """Undo :func:`escape_text`: drop a quote put before formula-like text."""
-    if text[:1] == "'" and text[1:2] in _ESCAPED_FOLLOWERS and text[1:2]:
+    if text[:1] == "'" and _escaped_follower(text[1:]):
         return text[1:]
     return text
+
+
+def control_problem(text: str) -> str | None:
+    """Why ``text`` cannot be stored (a control character or a lone surrogate), or ``None``."""
+    found = CONTROL_RE.search(text)
+    if found is None:
+        return None
+    code = ord(found.group())
+    return (
+        f"contains the control character U+{code:04X} at position {found.start() + 1}; "
+        "remove it (NUL and other control characters cannot be stored)"
+    )
+
+
+def in_range(value: float) -> bool:
+    """Whether a number > 0 is within the range the statistics can carry."""
+    return MIN_MAGNITUDE <= value <= MAX_MAGNITUDE
+
+
+def magnitude_problem(value: float) -> str | None:
+    """Why a finite number > 0 is outside the range the statistics can carry, or ``None``."""
+    if in_range(value):
+        return None
+    return f"must be {RANGE_TEXT} (the range the statistics can carry), got {value:.6g}"
 
 
 def is_blank(raw: object) -> bool:

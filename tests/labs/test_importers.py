@@ -133,7 +133,9 @@ def test_decimal_comma_rejected_with_comma_separator() -> None:
     ]  # fmt: skip
     unquoted = b"device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\n" \
                b"MEMS 1,X,10,linear,417,9,4\n"  # fmt: skip
-    assert (2, None, "value '4' in column 7, which has no header") in errors(unquoted)
+    assert errors(unquoted) == [
+        (2, None, "has 7 cells but the header has 6 columns: value '4' in column 7 has no header")
+    ]
 
 
 def test_decimal_comma_with_thousands_separator_is_rejected() -> None:

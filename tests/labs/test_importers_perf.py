@@ -119,7 +119,8 @@ def test_fast_and_precise_validation_agree(records: list[dict], options: dict) -
 def precise_parse(data: bytes, **options: object) -> list[ResultRow]:
     """The importer before the fast path: per row, record by record."""
     sheet = read_sheet(data, filename=None, content_type=None, max_rows=10**6)
-    columns = check_header(sheet.header, lab_column=options["lab_column"], row=sheet.header_row)
+    names = check_header(sheet.header, lab_column=options["lab_column"], row=sheet.header_row)
+    columns = [name for name in names if name]  # a sheet's rows hold the named cells only
     errors, records = list(sheet.errors), []
     for number, cells in sheet.rows:
         record, cell_errors = cells_to_record(columns, cells, number)

@@ -6,6 +6,7 @@ from django.contrib.auth import get_user_model
 from django.core.management.base import BaseCommand, CommandError
 
 from labs.bulk_import import ImportRefused, results_import
+from labs.importers.errors import more_problems
 from proficiency.errors import ApplicationError
 from proficiency.models import Comparison
 
@@ -42,8 +43,9 @@ class Command(BaseCommand):
         except ImportRefused as exc:
             for error in exc.row_errors:
                 self.stderr.write(str(error))
-            if exc.total > len(exc.row_errors):
-                self.stderr.write(f"... and {exc.total - len(exc.row_errors):,} more")
+            more = more_problems(exc.total - len(exc.row_errors))
+            if more:
+                self.stderr.write(more)
             raise CommandError(exc.message, returncode=2) from None
         except ApplicationError as exc:
             raise CommandError(exc.message, returncode=2) from None
