@@ -289,32 +289,38 @@ def _delete_outputs(run_id: int) -> None:
         model.objects.filter(run_id=run_id).delete()
 
 
-def _fail(run_id: int, message: str, status: str = R.FAILED) -> str:
+def _fail(run_id: int, message: str) -> str:
+    """Fail an active run with ``message``, deleting its outputs; the run's status
+    afterwards (a run already ended is left as it is)."""
+    _end(run_id, message, R.FAILED)
+    return _status(run_id)
+
+
+def _end(run_id: int, message: str, status: str) -> bool:
     """End an active run as ``status`` with ``message`` and delete every output it stored;
-    the run's status afterwards (a run already ended is left as it is)."""
+    whether it was active."""
     with transaction.atomic():
         # FOR UPDATE waits for the chunks storing their outputs (they hold the row FOR KEY
         # SHARE) and makes later ones wait for this and then find the run ended.
         run = AnalysisRun.objects.select_for_update().filter(pk=run_id).first()
-        if run is None:
-            return "missing"
-        if run.status not in ACTIVE:
-            return run.status
+        if run is None or run.status not in ACTIVE:
+            return False
         AnalysisRun.objects.filter(pk=run_id).update(
             status=status, error=message, finished_at=timezone.now()
         )
         _delete_outputs(run_id)
-    return status
+    return True
 
 
 def analysis_run_cancel(*, run: AnalysisRun, user: AbstractBaseUser | None) -> AnalysisRun:
     """Cancel a pending or running run: it stores nothing more and keeps no outputs; its
     queued tasks find it cancelled and do nothing.  A new run can be started at once."""
     who = getattr(user, "get_username", lambda: "")() or "a coordinator"
-    status = _fail(run.pk, f"Cancelled by {who}.", R.CANCELLED)
-    if status != R.CANCELLED:
-        raise StateConflict(f"Analysis run {run.pk} is {status}; only a pending or running run "
-                            "can be cancelled.")  # fmt: skip
+    if not _end(run.pk, f"Cancelled by {who}.", R.CANCELLED):
+        raise StateConflict(
+            f"Analysis run {run.pk} is {_status(run.pk)}; only a pending or running run can "
+            "be cancelled."
+        )
     run.refresh_from_db()
     return run
 
@@ -363,12 +369,14 @@ def analysis_chunk_execute(
                 _stage(run_id, "loading results", 10)
             loaded = load_round(run.comparison, chunk.first_point_id, chunk.last_point_id)
             analysis, m = _compute_checked(run, loaded)
-            last = _save_chunk(run, chunk, token, loaded, analysis, m, t0)
+            stored, last = _save_chunk(run, chunk, token, loaded, analysis, m, t0)
         except (ApplicationError, CoreInputError) as exc:
             return _fail(run_id, str(getattr(exc, "message", exc)))
         except Exception as exc:  # any other error is shown too, never a silent stuck run
             log.exception("analysis run %s, chunk %s failed", run_id, index)
             return _fail(run_id, f"{type(exc).__name__}: {exc}")
+    if not stored:  # the run ended meanwhile, or the chunk was taken over
+        return _status(run_id)
     if last and then_finish:
         from analysis.tasks import analysis_finish_task
 
@@ -397,16 +405,18 @@ def peak_rss_kb() -> int:
 def _save_chunk(
     run: AnalysisRun, chunk: AnalysisChunk, token: str, loaded: LoadedRound, a: Analysis,
     m: Moments, t0: float,
-) -> bool:  # fmt: skip
+) -> tuple[bool, bool]:  # fmt: skip
     """Store one chunk's outputs, mark it done and count it on the run, atomically, if
-    the run still runs and the chunk's claim is still ``token``; whether this stored the
-    run's last chunk."""
+    the run still runs and the chunk's claim is still ``token``: whether it stored them,
+    and whether that was the run's last chunk."""
     # the run before the chunk row: the order a deletion of the run locks them
     if _lock_run(run.pk) != R.RUNNING:  # failed or cancelled meanwhile: store nothing
-        return False
-    locked = AnalysisChunk.objects.select_for_update().filter(pk=chunk.pk).first()
+        return False, False
+    # of=self, no ordering: the default ordering joins the run, which FOR UPDATE would lock
+    locked = AnalysisChunk.objects.select_for_update(of=("self",)).order_by().filter(pk=chunk.pk)
+    locked = locked.first()
     if locked is None or locked.done or locked.token != token:
-        return False  # re-planned, stored by another delivery, or taken over
+        return False, False  # re-planned, stored by another delivery, or taken over
     span = {"gte": chunk.first_point_id, "lte": chunk.last_point_id}
     points = {f"measurement_point_id__{op}": v for op, v in span.items()}
     stale, _ = AssignedValue.objects.filter(run=run, **points).delete()
@@ -435,7 +445,7 @@ def _save_chunk(
     # the run row is now locked by this transaction: the count read is exact, and only
     # one chunk's transaction reads the total
     done, total = AnalysisRun.objects.values_list("chunks_done", "chunks_total").get(pk=run.pk)
-    return done == total
+    return True, done == total
 
 
 def _results_still_there(run: AnalysisRun, loaded: LoadedRound, points: dict[str, int]) -> bool:
@@ -572,52 +582,63 @@ def analysis_sweep() -> dict[str, int]:
       dropped and a new chunk task sent (a chunk being stored is locked, so skipped);
     * a run silent for that long (no heartbeat of any of its tasks): its run task if it is
       pending or not planned yet (the new task may take the claim over), else its chunks
-      that no task holds, else (every chunk stored) its final step.
+      that no task holds and none was sent for within that time, else (every chunk
+      stored) its final step.
 
-    Idempotent: each re-queue is decided by a conditional UPDATE (the dropped claim, the
-    run's heartbeat moved to now), so two sweeps at once send each task once, and a task
-    sent twice finds its work claimed or done.  Returns the counts of tasks sent.
+    Idempotent: each task sent is decided by a conditional UPDATE (a dropped claim, or a
+    chunk's or the run's heartbeat moved to now), so two sweeps at once send each task
+    once, and a task delivered twice finds its work claimed or done.  Returns the counts
+    of tasks sent.
     """
     from celery import uuid
 
     from analysis.tasks import analysis_chunk_task, analysis_finish_task, analysis_run_task
 
     sent = {"runs": 0, "chunks": 0, "finish": 0}
+    now = timezone.now()
     with transaction.atomic():
         lost = list(
             AnalysisChunk.objects.select_for_update(skip_locked=True, of=("self",))
+            .order_by()
             .filter(_silent(), run__status=R.RUNNING, done=False)
             .exclude(token="")
             .values_list("pk", "run_id", "index")
         )
-        AnalysisChunk.objects.filter(pk__in=[c[0] for c in lost]).update(token="", claimed_by="")
+        # the heartbeat moved to now: the task is sent, the run rule below waits for it
+        AnalysisChunk.objects.filter(pk__in=[c[0] for c in lost]).update(
+            token="", claimed_by="", heartbeat_at=now
+        )
     for _, run_id, index in lost:
         log.warning("analysis run %s: chunk %s lost with its worker, queued again", run_id, index)
         sent["chunks"] += _enqueue(analysis_chunk_task, run_id, index)
-    now = timezone.now()
     for run in AnalysisRun.objects.filter(_silent("created_at"), status__in=ACTIVE):
-        replan = run.status == R.PENDING or run.chunks_total == 0
-        task_id = uuid()
-        lease = {"heartbeat_at": now} | ({"claimed_by": task_id} if replan else {})
-        if not AnalysisRun.objects.filter(
-            pk=run.pk, status=run.status, heartbeat_at=run.heartbeat_at
-        ).update(**lease):  # fmt: skip
-            continue  # another sweep took it, or it came back to life
         log.warning("analysis run %s silent since %s: its work is queued again", run.pk,
                     run.heartbeat_at or run.created_at)  # fmt: skip
-        if replan:
-            sent["runs"] += _send(analysis_run_task, run.pk, task_id=task_id)
+        if run.status == R.PENDING or run.chunks_total == 0:
+            task_id = uuid()  # the run task sent may take the claim over
+            if _lease(run, claimed_by=task_id):
+                sent["runs"] += _send(analysis_run_task, run.pk, task_id=task_id)
             continue
-        todo = list(
-            AnalysisChunk.objects.filter(run=run, done=False, token="").values_list(
-                "index", flat=True
-            )
+        unsent = AnalysisChunk.objects.filter(
+            _silent() | Q(heartbeat_at__isnull=True), run=run, done=False, token=""
         )
-        if todo:
-            sent["chunks"] += sum(_enqueue(analysis_chunk_task, run.pk, i) for i in todo)
-        elif not AnalysisChunk.objects.filter(run=run, done=False).exists():
+        for pk, index, beat in unsent.values_list("pk", "index", "heartbeat_at"):
+            if AnalysisChunk.objects.filter(pk=pk, token="", heartbeat_at=beat).update(
+                heartbeat_at=now
+            ):  # fmt: skip
+                sent["chunks"] += _enqueue(analysis_chunk_task, run.pk, index)
+        if not AnalysisChunk.objects.filter(run=run, done=False).exists() and _lease(run):
             sent["finish"] += _enqueue(analysis_finish_task, run.pk)
     return sent
+
+
+def _lease(run: AnalysisRun, **fields: Any) -> bool:
+    """Move a silent run's heartbeat to now, unless another sweep or a task did."""
+    return bool(
+        AnalysisRun.objects.filter(
+            pk=run.pk, status=run.status, heartbeat_at=run.heartbeat_at
+        ).update(heartbeat_at=timezone.now(), **fields)
+    )
 
 
 def _send(task: Any, run_id: int, *, task_id: str) -> bool:
