@@ -70,5 +70,6 @@ def jobs_sweep_task() -> dict[str, int]:
     """Celery beat (``JOB_SWEEP_SECONDS``): re-queue analysis runs and raw-data
     recomputations whose worker was lost (heartbeat older than ``JOB_STALE_SECONDS``)."""
     from analysis.services import analysis_sweep
+    from labs.raw_services import raw_sweep
 
-    return analysis_sweep()
+    return analysis_sweep() | {"raw": raw_sweep()}
