@@ -18,13 +18,21 @@ from proficiency.models import Comparison, MeasurementPoint
 
 
 class AnalysisRun(models.Model):
-    """A persisted background job: ``pending → running → succeeded | failed``."""
+    """A persisted background job: ``pending → running → succeeded | failed | cancelled``.
+
+    ``heartbeat_at`` is the last sign of life of any task working on the run (its claim,
+    a heartbeat while it works, a chunk stored): the stale-job sweep
+    (``analysis.services.analysis_sweep``) re-queues the work of a run silent for longer
+    than ``ANALYSIS_STALE_SECONDS``.  ``claimed_by`` is the Celery task id of the run task
+    holding the run.
+    """
 
     class Status(models.TextChoices):
         PENDING = "pending", "Pending"
         RUNNING = "running", "Running"
         SUCCEEDED = "succeeded", "Succeeded"
         FAILED = "failed", "Failed"
+        CANCELLED = "cancelled", "Cancelled"
 
     comparison = models.ForeignKey(
         Comparison, on_delete=models.CASCADE, related_name="analysis_runs"
@@ -46,6 +54,10 @@ class AnalysisRun(models.Model):
     peak_rss_kb = models.PositiveBigIntegerField(
         null=True, blank=True, help_text="largest worker peak RSS (KiB) seen by its tasks"
     )
+    heartbeat_at = models.DateTimeField(
+        null=True, blank=True, help_text="last sign of life of a task working on the run"
+    )
+    claimed_by = models.CharField(max_length=64, blank=True, help_text="task id of the claim")
 
     class Meta:
         ordering = ["-created_at"]
@@ -84,6 +96,12 @@ class AnalysisChunk(models.Model):
 
     ``moments`` keeps per point n, Σx, Σu and M2 (``analysis.core.pooled``): the final
     step pools them into the compatibility matrices without reading the results again.
+
+    A task works on a chunk under a claim: ``token`` (random, new at every claim),
+    ``claimed_by`` (the Celery task id) and ``heartbeat_at`` (refreshed while it works).
+    Its outputs are stored only if the token is still the chunk's when it saves, under
+    the chunk's row lock; a claim is taken over only when its heartbeat is stale or by a
+    redelivery of the same task (``analysis.services``).
     """
 
     run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="chunks")
@@ -93,6 +111,9 @@ class AnalysisChunk(models.Model):
     n_results = models.PositiveIntegerField(default=0)
     done = models.BooleanField(default=False)
     attempts = models.PositiveSmallIntegerField(default=0)
+    token = models.CharField(max_length=32, blank=True, help_text="the current claim")
+    claimed_by = models.CharField(max_length=64, blank=True, help_text="task id of the claim")
+    heartbeat_at = models.DateTimeField(null=True, blank=True)
     moments = models.JSONField(default=dict, blank=True)
     peak_rss_kb = models.PositiveBigIntegerField(null=True, blank=True)
     seconds = models.FloatField(null=True, blank=True)

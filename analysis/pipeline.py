@@ -19,6 +19,7 @@ from analysis.core import assigned as av
 from analysis.core import robust
 from analysis.core.compatibility import CompatibilityMatrix, compatibility_matrices
 from analysis.core.groups import CoreInputError, FloatArray, Groups
+from analysis.core.pooled import Moments
 from analysis.core.scores import FLAG_LABELS, Scores, compute_scores
 from analysis.core.types import AssignedValues
 from labs.importers import ResultRow
@@ -329,6 +330,32 @@ def sigma_pt_values(
     return av.sigma_pt_prescribed(
         spec.value, groups.n_groups, x_pt=values.value, relative=spec.mode == "relative"
     )
+
+
+def overflowing_results(table: ResultTable) -> np.ndarray:
+    """Results whose own numbers overflow double precision in the analysis' arithmetic
+    (x, u, x², 1/u² or (x/u)² not finite, e.g. a sensitivity of 1e308 or U of 1e-300):
+    the ones to name when an output is not finite."""
+    x, u = table.value, table.standard_uncertainty
+    with np.errstate(all="ignore"):
+        ok = np.isfinite(x) & np.isfinite(u) & (u > 0) & np.isfinite(x * x)
+        ok &= np.isfinite(1.0 / (u * u)) & np.isfinite((x / u) ** 2)
+    return ~ok
+
+
+def nonfinite_points(analysis: Analysis, m: Moments) -> np.ndarray:
+    """Per point: whether a number to store there is NaN or infinite (x_pt, u(x_pt), σ_pt
+    where set, a score of one of its results, or a moment).  z and z′ are NaN by design
+    where σ_pt is not set."""
+    v, s, groups = analysis.assigned, analysis.scores, analysis.groups
+    bad = ~(np.isfinite(v.value) & np.isfinite(v.standard_uncertainty))
+    bad |= np.isinf(analysis.sigma_pt)
+    bad |= ~(np.isfinite(m.sum_x) & np.isfinite(m.sum_u) & np.isfinite(m.m2))
+    per_result = ~(np.isfinite(s.d) & np.isfinite(s.d_percent) & np.isfinite(s.en))
+    per_result |= ~np.isfinite(s.zeta)
+    with_z = np.isfinite(analysis.sigma_pt)[groups.index]
+    per_result |= with_z & ~(np.isfinite(s.z) & np.isfinite(s.z_prime))
+    return bad | (np.bincount(groups.index[per_result], minlength=groups.n_groups) > 0)
 
 
 def _point_label(point: tuple[Any, ...]) -> str:

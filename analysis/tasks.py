@@ -1,11 +1,13 @@
 """Celery tasks of the analysis side. Tasks take ids and re-check state (safe to run twice).
 
 An analysis run is ``analysis_run_task`` (claim, plan the chunks; a small round is
-analysed right there), or, for a large round, a chord of ``analysis_chunk_task`` (one
-per chunk of measurement points) whose body ``analysis_finish_task`` stores the
-compatibility matrices and marks the run done.  ``acks_late`` with
-``reject_on_worker_lost``: a chunk lost with its worker is delivered again and redone
-alone; a chunk already stored is a no-op.
+analysed right there), or, for a large round, one ``analysis_chunk_task`` per chunk of
+measurement points, the chunk that stores the last one sending ``analysis_finish_task``
+(compatibility matrices, run done).  ``acks_late`` with ``reject_on_worker_lost``: a
+task lost with a pool process is delivered again at once and takes its claim over.
+When the whole worker is lost, ``jobs_sweep_task`` (Celery beat) re-queues the work
+whose heartbeat went stale, within minutes; the broker's visibility timeout is the
+backstop.  A chunk already stored, or held by a live task, is a no-op.
 """
 
 from celery import shared_task
@@ -32,15 +34,19 @@ def analysis_run_task(self, run_id: int) -> str:
     from analysis.services import analysis_run_execute
 
     queue = (self.request.delivery_info or {}).get("routing_key")
-    return analysis_run_execute(run_id=run_id, queue=queue)
+    return analysis_run_execute(run_id=run_id, queue=queue, delivery=self.request.id or "")
 
 
-@shared_task(**_TASK)
-def analysis_chunk_task(run_id: int, index: int) -> str:
-    """Analyse chunk ``index`` of run ``run_id`` and store its outputs."""
+@shared_task(bind=True, **_TASK)
+def analysis_chunk_task(self, run_id: int, index: int) -> str:
+    """Analyse chunk ``index`` of run ``run_id`` and store its outputs; the last chunk
+    stored sends the final step to the queue this task came from."""
     from analysis.services import analysis_chunk_execute
 
-    return analysis_chunk_execute(run_id=run_id, index=index)
+    queue = (self.request.delivery_info or {}).get("routing_key")
+    return analysis_chunk_execute(
+        run_id=run_id, index=index, delivery=self.request.id or "", queue=queue
+    )
 
 
 @shared_task(**_TASK)
@@ -57,3 +63,13 @@ def reports_pending_task() -> int:
     from analysis.reports.services import reports_pending_enqueue
 
     return reports_pending_enqueue()
+
+
+@shared_task(soft_time_limit=50, time_limit=60)
+def jobs_sweep_task() -> dict[str, int]:
+    """Celery beat (``JOB_SWEEP_SECONDS``): re-queue analysis runs and raw-data
+    recomputations whose worker was lost (heartbeat older than ``JOB_STALE_SECONDS``)."""
+    from analysis.services import analysis_sweep
+    from labs.raw_services import raw_sweep
+
+    return analysis_sweep() | {"raw": raw_sweep()}

@@ -16,6 +16,7 @@ urlpatterns = [
     path(C + "analysis/runs/", views.runs, name="runs"),
     path(C + "analysis/runs/<int:pk>/", views.run_detail, name="run"),
     path(C + "analysis/runs/<int:pk>/progress/", views.run_progress, name="run_progress"),
+    path(C + "analysis/runs/<int:pk>/cancel/", views.run_cancel, name="run_cancel"),
     path(C + "publish/", views.publish, name="publish"),
 ]
 

@@ -25,7 +25,7 @@ from analysis import charts
 from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
 from analysis.models import AnalysisRun, AssignedValue, Score
 from analysis.selectors import current_run, lab_matrices, run_matrices, run_scores
-from analysis.services import analysis_run_start
+from analysis.services import analysis_run_cancel, analysis_run_start
 from labs.selectors import participant_for_user
 from proficiency.coordinator_views import POINT_ORDER, coordinated
 from proficiency.errors import ApplicationError, NotVisible
@@ -154,6 +154,20 @@ def run_progress(request: HttpRequest, code: str, pk: int) -> HttpResponse:
     run = _run(request, code, pk)
     context = {"comparison": run.comparison, "run": run, "current": current_run(run.comparison)}
     return render(request, "analysis/_progress.html", context)
+
+
+@login_required
+@require_POST
+def run_cancel(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+    """Cancel a pending or running run; the coordinator can start a new one at once."""
+    run = _run(request, code, pk)
+    try:
+        analysis_run_cancel(run=run, user=request.user)
+    except ApplicationError as exc:
+        messages.error(request, exc.message)
+    else:
+        messages.success(request, f"Analysis run {pk} is cancelled; it keeps no results.")
+    return redirect("coordinator:run", code=code, pk=pk)
 
 
 @login_required

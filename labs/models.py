@@ -285,6 +285,10 @@ class RawRecomputation(models.Model):
     """The service's recomputation of one raw record (``pending → running → succeeded |
     failed``); one per record, so a task delivered twice cannot store two results.
 
+    Lost workers: the claim (``claimed_by``, the Celery task id, and ``started_at``) and
+    the heartbeat follow the analysis runs' protocol (``proficiency.jobs``): a row silent
+    for ``JOB_STALE_SECONDS`` is re-queued by the sweep and may be taken over.
+
     ``axes`` holds every axis of the record (``pt_sensitivity --format json``); the
     ``sensitivity`` columns are the axis of the measurement point.  ``en`` compares the
     reported and the recomputed value: (S_rep − S_rec) / √(U_rep² + U_rec²)."""
@@ -316,6 +320,10 @@ class RawRecomputation(models.Model):
     created_at = models.DateTimeField(auto_now_add=True)
     started_at = models.DateTimeField(null=True, blank=True)
     finished_at = models.DateTimeField(null=True, blank=True)
+    heartbeat_at = models.DateTimeField(
+        null=True, blank=True, help_text="last sign of life of the task working on it"
+    )
+    claimed_by = models.CharField(max_length=64, blank=True, help_text="task id of the claim")
 
     class Meta:
         ordering = ["-created_at"]

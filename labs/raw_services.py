@@ -8,12 +8,16 @@ pending recomputation in one transaction and enqueues ``raw_recompute_task`` aft
 commit.  ``raw_recompute_execute`` claims the row with a conditional UPDATE and writes
 the outputs with a second conditional UPDATE, so a task delivered twice leaves one
 result (the row is one per record: a OneToOne).
+
+The claim follows the analysis runs' protocol (``analysis.services``; issue 17 unifies
+the two): a running row may be taken over when its heartbeat is stale or by a
+redelivery of the task that claimed it, and ``raw_sweep`` (Celery beat) re-queues the
+rows whose worker was lost.  The claim's ``started_at`` is the token ``_finish`` checks.
 """
 
 from __future__ import annotations
 
 import contextlib
-import datetime as dt
 import hashlib
 import logging
 import math
@@ -25,7 +29,8 @@ from typing import Any
 from django.conf import settings
 from django.contrib.auth.models import AbstractBaseUser
 from django.core.files.base import ContentFile
-from django.db import IntegrityError, transaction
+from django.db import IntegrityError, connection, transaction
+from django.db.models import Q
 from django.utils import timezone
 
 import proficiency
@@ -35,12 +40,12 @@ from labs.models import Participant, RawFile, RawRecomputation, RawRecord, Resul
 from labs.raw import read_record
 from labs.raw_selectors import raw_record_read
 from proficiency.errors import RequestTooLarge, ValidationFailed
+from proficiency.jobs import heartbeat, stale_before
 from proficiency.models import MeasurementPoint
 
 log = logging.getLogger(__name__)
 R = RawRecomputation.Status
 METHOD = "sine-fit"
-STALE_AFTER = dt.timedelta(hours=1)  # a "running" row older than this was lost with its worker
 POINT_FIELDS = ("device", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2")
 
 
@@ -261,32 +266,84 @@ def _parameters(record: RawRecord) -> dict[str, Any]:
 # --- recomputation -------------------------------------------------------------------------
 
 
-def _claim(record_id: int) -> bool:
-    """pending → running, or take over a running row whose worker was lost."""
+def _claim(record_id: int, delivery: str = "") -> bool:
+    """pending → running; or take over a running row whose heartbeat is stale, or that
+    this very task (``delivery``, its Celery id, redelivered after its worker was lost)
+    had claimed.  Each claim sets a new ``started_at``, the token ``_finish`` checks."""
     now = timezone.now()
-    fresh = {"status": R.RUNNING, "started_at": now, "error": ""}
+    fresh = {"status": R.RUNNING, "started_at": now, "error": "", "heartbeat_at": now,
+             "claimed_by": delivery}  # fmt: skip
     rows = RawRecomputation.objects.filter(record_id=record_id)
     if rows.filter(status=R.PENDING).update(**fresh):
         return True
-    return bool(rows.filter(status=R.RUNNING, started_at__lt=now - STALE_AFTER).update(**fresh))
+    stale = stale_before()
+    takeover = Q(heartbeat_at__lt=stale) | Q(heartbeat_at__isnull=True, started_at__lt=stale)
+    if delivery:
+        takeover |= Q(claimed_by=delivery)
+    return bool(rows.filter(takeover, status=R.RUNNING).update(**fresh))
 
 
-def raw_recompute_execute(*, record_id: int) -> str:
-    """Recompute record ``record_id``; a no-op (returns the status) unless it is pending."""
-    if not _claim(record_id):
+def _beat(row_id: int, started_at: Any) -> None:
+    """The row's heartbeat while this claim holds it (never waits for a lock)."""
+    table = connection.ops.quote_name(RawRecomputation._meta.db_table)
+    with connection.cursor() as cur:
+        cur.execute(
+            f"UPDATE {table} SET heartbeat_at = %s WHERE id = (SELECT id FROM {table} WHERE "
+            "id = %s AND status = %s AND started_at = %s FOR NO KEY UPDATE SKIP LOCKED)",
+            [timezone.now(), row_id, R.RUNNING, started_at],
+        )
+
+
+def raw_recompute_execute(*, record_id: int, delivery: str = "") -> str:
+    """Recompute record ``record_id``; a no-op (returns the status) unless it is pending,
+    or running and lost by its worker.  ``delivery``: this task's Celery id."""
+    if not _claim(record_id, delivery):
         row = RawRecomputation.objects.filter(record_id=record_id).first()
         return row.status if row else "missing"
     row = RawRecomputation.objects.select_related(
         "record__measurement_point", "record__data_file", "record__reference_file"
     ).get(record_id=record_id)
-    try:
-        outputs = _outputs(row)
-    except CoreInputError as exc:
-        return _finish(row, {"status": R.FAILED, "error": str(exc)})
-    except Exception as exc:  # any other error is shown too, never a silent stuck row
-        log.exception("raw recomputation of record %s failed", record_id)
-        return _finish(row, {"status": R.FAILED, "error": f"{type(exc).__name__}: {exc}"})
-    return _finish(row, {"status": R.SUCCEEDED, **outputs})
+    with heartbeat(lambda: _beat(row.pk, row.started_at), f"raw recomputation {row.pk}"):
+        try:
+            outputs = _outputs(row)
+        except CoreInputError as exc:
+            return _finish(row, {"status": R.FAILED, "error": str(exc)})
+        except Exception as exc:  # any other error is shown too, never a silent stuck row
+            log.exception("raw recomputation of record %s failed", record_id)
+            return _finish(row, {"status": R.FAILED, "error": f"{type(exc).__name__}: {exc}"})
+        return _finish(row, {"status": R.SUCCEEDED, **outputs})
+
+
+def raw_sweep() -> int:
+    """Celery beat: re-queue the recomputations silent for ``JOB_STALE_SECONDS`` (pending
+    ones whose message was lost, running ones whose worker was lost).  Each is decided by
+    a conditional UPDATE that moves the heartbeat to now and names the task sent, which
+    may then take the claim over: two sweeps at once send it once.  The number sent."""
+    from celery import uuid
+    from kombu.exceptions import OperationalError
+
+    from labs.tasks import raw_recompute_task
+
+    stale = stale_before()
+    silent = Q(heartbeat_at__lt=stale) | Q(heartbeat_at__isnull=True, created_at__lt=stale)
+    rows = RawRecomputation.objects.filter(silent, status__in=(R.PENDING, R.RUNNING))
+    sent = 0
+    for pk, record_id, status, beat in rows.values_list(
+        "pk", "record_id", "status", "heartbeat_at"
+    ):  # fmt: skip
+        task_id = uuid()
+        if not RawRecomputation.objects.filter(pk=pk, status=status, heartbeat_at=beat).update(
+            heartbeat_at=timezone.now(), **({"claimed_by": task_id} if status == R.RUNNING else {})
+        ):  # fmt: skip
+            continue
+        log.warning("raw recomputation of record %s silent: queued again", record_id)
+        try:
+            raw_recompute_task.apply_async((record_id,), task_id=task_id)
+        except (OperationalError, OSError) as exc:
+            log.error("raw recomputation of record %s not queued again: %s", record_id, exc)
+            continue
+        sent += 1
+    return sent
 
 
 def _finish(row: RawRecomputation, fields: dict[str, Any]) -> str:

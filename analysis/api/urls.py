@@ -11,6 +11,11 @@ urlpatterns = [
         name="analysis-run-list",
     ),
     path("analysis-runs/<int:pk>/", views.AnalysisRunDetail.as_view(), name="analysis-run-detail"),
+    path(
+        "analysis-runs/<int:pk>/cancel/",
+        views.AnalysisRunCancel.as_view(),
+        name="analysis-run-cancel",
+    ),
     path("comparisons/<slug:code>/scores/", views.ScoreList.as_view(), name="score-list"),
     path(
         "comparisons/<slug:code>/compatibility/",

@@ -20,7 +20,7 @@ from analysis.core.groups import CoreInputError
 from analysis.models import AnalysisRun, Score
 from analysis.pipeline import matrix_record
 from analysis.selectors import SCORE_FILTERS, current_run, lab_matrices, run_matrices, run_scores
-from analysis.services import analysis_run_start
+from analysis.services import analysis_run_cancel, analysis_run_start
 from labs.api.permissions import ComparisonAccess, caller_of, comparisons_for
 from labs.api.views import ApiView
 from labs.models import Result, Submission
@@ -91,11 +91,26 @@ class AnalysisRunDetail(ApiView):
 
     @extend_schema(responses=s.AnalysisRunSerializer)
     def get(self, request: Request, pk: int) -> Response:
-        run = AnalysisRun.objects.filter(
-            pk=pk, comparison__in=comparisons_for(caller_of(request))
-        ).first()
-        if run is None or not self.access(run.comparison.code).is_coordinator:
-            raise NotVisible(f"No analysis run {pk} is visible to you.")
+        return Response(s.AnalysisRunSerializer(coordinated_run(self, request, pk)).data)
+
+
+def coordinated_run(view: ApiView, request: Request, pk: int) -> AnalysisRun:
+    """Run ``pk`` if the caller coordinates its comparison; 404 otherwise."""
+    run = AnalysisRun.objects.filter(
+        pk=pk, comparison__in=comparisons_for(caller_of(request))
+    ).first()
+    if run is None or not view.access(run.comparison.code).is_coordinator:
+        raise NotVisible(f"No analysis run {pk} is visible to you.")
+    return run
+
+
+class AnalysisRunCancel(ApiView):
+    """Cancel a pending or running run (coordinators): it keeps no outputs, and a new run
+    can be started at once.  409 if the run has ended already."""
+
+    @extend_schema(request=None, responses={200: s.AnalysisRunSerializer})
+    def post(self, request: Request, pk: int) -> Response:
+        run = analysis_run_cancel(run=coordinated_run(self, request, pk), user=request.user)
         return Response(s.AnalysisRunSerializer(run).data)
 
 

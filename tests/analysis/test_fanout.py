@@ -9,7 +9,7 @@ import pytest
 from django.core.management import call_command
 from django.db import connection
 
-from analysis import outputs, services
+from analysis import outputs, services, tasks
 from analysis.models import AnalysisChunk, AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.services import (
     analysis_chunk_execute,
@@ -104,12 +104,18 @@ def started(comparison, settings, chunk_results, monkeypatch):
     """A claimed and planned run whose chunks were not sent (``_dispatch`` recorded)."""
     settings.ANALYSIS_CHUNK_RESULTS = chunk_results
     sent = []
-    monkeypatch.setattr(services, "_dispatch", lambda run_id, n, q: sent.append((run_id, n)))
+    monkeypatch.setattr(
+        services, "_dispatch", lambda run_id, todo, q: sent.append((run_id, len(list(todo))))
+    )
+    finish_sent: list[int] = []  # the final step, sent by the chunk that stores the last one
+    monkeypatch.setattr(tasks.analysis_finish_task, "delay", finish_sent.append)
     run = AnalysisRun.objects.create(comparison=comparison, parameters=services._parameters(
         comparison))  # fmt: skip
     assert analysis_run_execute(run_id=run.pk) == "running"
     assert sent == [(run.pk, AnalysisRun.objects.get(pk=run.pk).chunks_total)]
-    return AnalysisRun.objects.get(pk=run.pk)
+    run = AnalysisRun.objects.get(pk=run.pk)
+    run.finish_sent = finish_sent
+    return run
 
 
 class WorkerLost(BaseException):
@@ -132,7 +138,7 @@ def test_a_lost_chunk_is_redone_alone_and_never_duplicated(demo, settings, monke
 
     monkeypatch.setattr(services, "write_scores", dies_mid_write)
     with pytest.raises(WorkerLost):
-        analysis_chunk_execute(run_id=run.pk, index=1)
+        analysis_chunk_execute(run_id=run.pk, index=1, delivery="task-of-chunk-1")
     monkeypatch.setattr(services, "write_scores", real_write)
     chunk1 = AnalysisChunk.objects.get(run=run, index=1)
     assert not chunk1.done and chunk1.attempts == 1
@@ -140,13 +146,15 @@ def test_a_lost_chunk_is_redone_alone_and_never_duplicated(demo, settings, monke
     assert len(first_ids) == AnalysisChunk.objects.get(run=run, index=0).n_results  # rolled back
 
     assert analysis_chunk_execute(run_id=run.pk, index=2) == "running"
-    assert analysis_chunk_execute(run_id=run.pk, index=1) == "running"  # the redelivery
-    assert analysis_chunk_execute(run_id=run.pk, index=1) == "running"  # once more: no-op
+    # the same task delivered again (its worker lost): it takes its own claim over
+    assert analysis_chunk_execute(run_id=run.pk, index=1, delivery="task-of-chunk-1") == "running"
+    assert analysis_chunk_execute(run_id=run.pk, index=1, delivery="task-of-chunk-1") == "running"
     attempts = dict(AnalysisChunk.objects.filter(run=run).values_list("index", "attempts"))
     assert attempts == {0: 1, 1: 2, 2: 1}
     assert first_ids <= set(Score.objects.filter(run=run).values_list("pk", flat=True))
     run.refresh_from_db()
     assert (run.status, run.chunks_done, run.progress) == ("running", 3, 95)
+    assert run.finish_sent == [run.pk]  # once, by the redelivered chunk 1 (the last stored)
     assert analysis_run_finish(run_id=run.pk) == "succeeded"
     assert analysis_run_finish(run_id=run.pk) == "succeeded"  # the body delivered twice
     assert stored(run) == reference
@@ -158,7 +166,7 @@ def test_outputs_without_the_done_mark_are_replaced(demo, settings, monkeypatch)
     for i in range(3):
         analysis_chunk_execute(run_id=run.pk, index=i)
     before = stored(run)
-    AnalysisChunk.objects.filter(run=run, index=1).update(done=False)
+    AnalysisChunk.objects.filter(run=run, index=1).update(done=False, token="")
     AnalysisRun.objects.filter(pk=run.pk).update(chunks_done=2)
     assert analysis_chunk_execute(run_id=run.pk, index=1) == "running"
     assert Score.objects.filter(run=run).count() == 891
@@ -228,8 +236,9 @@ def test_a_result_deleted_while_the_run_works_fails_it(demo, settings, monkeypat
     )
     chunk1 = AnalysisChunk.objects.get(run=run, index=1)
     assert not chunk1.done  # its rows were rolled back
-    assert Score.objects.filter(run=run).count() == AnalysisChunk.objects.get(
-        run=run, index=0).n_results  # fmt: skip
+    assert AnalysisChunk.objects.get(run=run, index=0).done
+    assert not Score.objects.filter(run=run).exists()  # a failed run keeps no outputs
+    assert not AssignedValue.objects.filter(run=run).exists()
 
 
 def test_deleting_a_result_through_the_orm_deletes_its_scores(demo, settings):

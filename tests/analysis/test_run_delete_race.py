@@ -117,6 +117,6 @@ def test_a_chunk_started_during_a_deletion_writes_nothing(demo, settings, monkey
         chunk = in_thread(lambda: analysis_chunk_execute(run_id=run.pk, index=0), out, "chunk")
         wait_for_lock_wait(out)  # the chunk waits for the deletion's locks
     chunk.join(60)
-    assert out["chunk"] == "failed"  # it found no run to lock and rolled back
+    assert out["chunk"] == "missing"  # its claim found the chunk deleted with the run
     assert not Score.objects.filter(run_id=run.pk).exists()
     assert not AssignedValue.objects.filter(run_id=run.pk).exists()

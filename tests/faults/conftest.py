@@ -111,6 +111,17 @@ class Workers:
         self.procs.append(proc)
         return proc
 
+    def start_beat(self, schedule: Path, **env_extra: str) -> subprocess.Popen:
+        """Celery beat with the project's schedule, sending to this pool's queue."""
+        env = os.environ | {"CELERY_BROKER_URL": BROKER, "FAULT_QUEUE": self.queue} | env_extra
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "celery", "-A", "tests.faults.worker_app", "beat",
+             "-s", str(schedule), "--loglevel=WARNING"],
+            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        )  # fmt: skip
+        self.procs.append(proc)
+        return proc
+
     def check_alive(self) -> None:
         for proc in self.procs:
             if proc.returncode is None and proc.poll() is not None:

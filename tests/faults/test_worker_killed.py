@@ -1,9 +1,11 @@
-"""A worker SIGKILLed in the middle of an analysis run: the task it held is delivered
-again (Redis visibility timeout, ``acks_late``) to a new worker, and the run completes
-with exactly the numbers of an undisturbed run, without a duplicate row.
+"""A worker SIGKILLed in the middle of an analysis run: the task it held is queued again
+to a new worker, and the run completes with exactly the numbers of an undisturbed run,
+without a duplicate row.
 
-Fanned out, the lost chunk is redone alone; a one-chunk run (the whole analysis in
-``analysis_run_task``) is taken over by the redelivered task once the run is stale."""
+Redelivered by Redis after a (here short) visibility timeout, ``acks_late``: the same
+task takes its own claim over; fanned out, the lost chunk is redone alone.  With the
+production visibility timeout (an hour), the stale-job sweep of Celery beat re-queues
+the lost chunk once its heartbeat is stale, within a few sweep intervals."""
 
 import os
 import signal
@@ -99,12 +101,63 @@ def test_sigkill_mid_chunk_is_redelivered_and_gives_identical_results(
 
 
 def test_sigkill_mid_single_task_run_is_taken_over(workers, undisturbed, tmp_path):
-    env = {
-        "ANALYSIS_CHUNK_RESULTS": str(10**9),
-        "CELERY_VISIBILITY_TIMEOUT": str(VISIBILITY),
-        "FAULT_STALE_AFTER": str(VISIBILITY - 1),  # production: 1 h < the visibility timeout
-    }
+    env = {"ANALYSIS_CHUNK_RESULTS": str(10**9), "CELERY_VISIBILITY_TIMEOUT": str(VISIBILITY)}
     run = kill_and_recover(workers, tmp_path / "hung", env, hang="run")
     assert (run.chunks_total, run.chunks_done, run.progress) == (1, 1, 100)
-    assert AnalysisChunk.objects.get(run=run).attempts == 1  # re-planned by the new claim
+    # the same task delivered again takes its own claims over: the plan is kept and its
+    # one chunk redone
+    assert AnalysisChunk.objects.get(run=run).attempts == 2
+    assert_same_numbers_no_duplicates(run, undisturbed)
+
+
+# The sweep's timing in the next test (production: 30 s, 300 s, 60 s).
+HEARTBEAT, STALE, SWEEP = 0.5, 3.0, 1.0
+
+
+def test_sigkill_of_the_worker_main_process_is_recovered_by_the_sweep(
+    workers, undisturbed, tmp_path
+):
+    """The lost chunk waits in Redis' unacked set for the whole visibility timeout (an hour
+    here, as in production); the beat sweep sees its heartbeat go stale and queues it
+    again, and the run finishes within a few sweep intervals of the new worker's start."""
+    env = {
+        "ANALYSIS_CHUNK_RESULTS": "50",
+        "CELERY_VISIBILITY_TIMEOUT": "3600",
+        "JOB_HEARTBEAT_SECONDS": str(HEARTBEAT),
+        "JOB_STALE_SECONDS": str(STALE),
+        "JOB_SWEEP_SECONDS": str(SWEEP),
+    }
+    marker, ready = tmp_path / "hung", tmp_path / "ready"
+    doomed = workers.start("w0", FAULT_HANG_CHUNK="3", FAULT_MARKER=str(marker), **env)
+    demo = Comparison.objects.get(code="IMU-2024-DEMO")
+    run = analysis_run_start(comparison=demo, user=None)
+    wait_until(marker.exists, "the worker to hang in chunk 3", workers)
+    lost_claim = AnalysisChunk.objects.get(run=run, index=3).claimed_by
+    os.kill(doomed.pid, signal.SIGKILL)  # the solo pool's worker is its main process
+    assert doomed.wait(10) == -signal.SIGKILL
+    run.refresh_from_db()
+    assert (run.status, run.chunks_done) == ("running", 3)  # chunks 0-2, then it hung in 3
+    # a coordinator starting a run meanwhile gets the same run, which will finish
+    assert analysis_run_start(comparison=demo, user=None).pk == run.pk
+
+    workers.start("w1", FAULT_READY=str(ready), **env)
+    workers.start_beat(tmp_path / "beat-schedule", **env)
+    wait_until(ready.exists, "the new worker to be ready", workers)
+    t_ready = float(ready.read_text())
+
+    def finished() -> bool:
+        run.refresh_from_db()
+        return run.status in ("succeeded", "failed")
+
+    wait_until(finished, "the run to finish", workers, timeout=STALE + 30 * SWEEP)
+    assert run.status == "succeeded", run.error
+    elapsed = run.finished_at.timestamp() - t_ready
+    # stale by then at the latest, seen by the next sweep, redone with the 14 left: a few
+    # sweep intervals, and nothing like the visibility timeout
+    assert elapsed < STALE + 10 * SWEEP, elapsed
+    assert (run.chunks_total, run.chunks_done, run.progress) == (18, 18, 100)
+    chunks = AnalysisChunk.objects.filter(run=run)
+    lost = chunks.get(index=3)
+    assert lost.attempts == 2 and lost.claimed_by not in ("", lost_claim)  # the sweep's task
+    assert chunks.filter(done=True).count() == 18 == chunks.filter(attempts=1).count() + 1
     assert_same_numbers_no_duplicates(run, undisturbed)

@@ -3,7 +3,8 @@
 With ``FAULT_HANG_CHUNK=i`` the worker hangs inside chunk ``i``'s transaction (``run``:
 inside the single task of a one-chunk run), after its
 assigned values and scores are written and before they commit, and writes the file
-``FAULT_MARKER`` so that the test knows when to SIGKILL it.  Nothing of this is in
+``FAULT_MARKER`` so that the test knows when to SIGKILL it; with ``FAULT_READY`` it
+writes that file when it is ready to consume.  Nothing of this is in
 the project's code: the worker is started with ``-A tests.faults.worker_app``.
 """
 
@@ -28,12 +29,10 @@ def _remember(task=None, args=None, **_: object) -> None:
 
 @worker_ready.connect
 def _install_hang(**_: object) -> None:
-    import datetime as dt
-
     import analysis.services as services
 
-    if stale := os.environ.get("FAULT_STALE_AFTER"):  # seconds instead of the 1 h
-        services.STALE_AFTER = dt.timedelta(seconds=float(stale))
+    if ready := os.environ.get("FAULT_READY"):  # tells the test when this worker consumes
+        Path(ready).write_text(str(time.time()))
     hang = os.environ.get("FAULT_HANG_CHUNK")  # a chunk index, or "run": the single task
     if not hang:
         return

@@ -193,3 +193,51 @@ def test_file_store_dedups_and_restores_a_lost_file():
     assert again.pk == first.pk
     with open(path, "rb") as fh:
         assert fh.read() == b"\x01\x00\x02\x00"
+
+
+def test_a_recomputation_lost_with_its_worker_is_swept_and_redone_once(
+    client, world, django_capture_on_commit_callbacks
+):
+    """Same claim protocol as the analysis runs: a live claim is never taken over, a stale
+    one is queued again by the sweep (eager here) and taken over; a second sweep sends
+    nothing."""
+    import datetime as dt
+
+    from django.utils import timezone
+
+    from labs.raw_services import _claim, raw_sweep
+
+    client.force_login(world["a"])
+    with django_capture_on_commit_callbacks(execute=False):
+        upload(client, linear(duration=5.0))
+    record = RawRecord.objects.get()
+    assert _claim(record.pk, "dead")  # claimed, then its worker is lost
+    assert raw_sweep() == 0  # its heartbeat is fresh: alive for all we know
+    assert raw_recompute_execute(record_id=record.pk, delivery="other") == "running"  # held
+    long_ago = timezone.now() - dt.timedelta(hours=2)
+    RawRecomputation.objects.filter(record=record).update(heartbeat_at=long_ago)
+    assert raw_sweep() == 1
+    row = RawRecomputation.objects.get()
+    assert row.status == "succeeded" and row.claimed_by not in ("", "dead")
+    assert raw_sweep() == 0
+    # the lost task's own redelivery, later: a no-op
+    assert raw_recompute_execute(record_id=record.pk, delivery="dead") == "succeeded"
+    assert RawRecomputation.objects.get().finished_at == row.finished_at
+
+
+def test_a_pending_recomputation_whose_message_was_lost_is_sent_again(
+    client, world, django_capture_on_commit_callbacks
+):
+    import datetime as dt
+
+    from django.utils import timezone
+
+    from labs.raw_services import raw_sweep
+
+    client.force_login(world["a"])
+    with django_capture_on_commit_callbacks(execute=False):  # the message is lost
+        upload(client, linear(duration=5.0))
+    assert raw_sweep() == 0  # just created
+    RawRecomputation.objects.update(created_at=timezone.now() - dt.timedelta(hours=2))
+    assert raw_sweep() == 1
+    assert RawRecomputation.objects.get().status == "succeeded"
