@@ -249,3 +249,23 @@ def test_batch_started_before_publication_issues_final_reports_after_it(
     assert not Report.objects.filter(status="preliminary", superseded=False).exists()
     for pk in ids:
         assert Report.objects.filter(participant_id=pk, superseded=False).count() == 1
+
+
+def test_migration_marks_old_reports_by_the_audit_logs_publication_time(stand_in, analysed):
+    """Rows from before ``Report.status``: final if issued after the logged publication,
+    else preliminary and, on a published comparison, superseded (beat issues the final)."""
+    import importlib
+
+    from django.apps import apps
+
+    migration = importlib.import_module("analysis.migrations.0006_report_status")
+    comparison = analysed.comparison
+    early = report_issue(comparison=comparison, kind="summary")
+    comparison_publish(comparison=comparison)
+    later = set(Report.objects.exclude(pk=early.pk).values_list("pk", flat=True))
+    assert len(later) == 13
+    Report.objects.update(status="preliminary", superseded=False)  # as before the field
+    migration.forwards(apps, None)
+    assert set(Report.objects.filter(status="final").values_list("pk", flat=True)) == later
+    early.refresh_from_db()
+    assert (early.status, early.superseded) == ("preliminary", True)
