@@ -45,8 +45,16 @@ class ScoreAdmin(admin.ModelAdmin):
 
 @admin.register(Report)
 class ReportAdmin(admin.ModelAdmin):
-    list_display = ["comparison", "kind", "participant", "version", "superseded", "created_at"]
-    list_filter = ["kind", "superseded", "comparison"]
+    list_display = [
+        "comparison",
+        "kind",
+        "participant",
+        "version",
+        "status",
+        "superseded",
+        "created_at",
+    ]
+    list_filter = ["kind", "status", "superseded", "comparison"]
     search_fields = ["comparison__code", "participant__code", "sha256"]
 
 

@@ -249,6 +249,10 @@ class Report(models.Model):
         SUMMARY = "summary", "Summary report"
         PARTICIPANT = "participant", "Participant report"
 
+    class Status(models.TextChoices):
+        PRELIMINARY = "preliminary", "Preliminary"
+        FINAL = "final", "Final"
+
     comparison = models.ForeignKey(Comparison, on_delete=models.CASCADE, related_name="reports")
     run = models.ForeignKey(
         AnalysisRun, null=True, blank=True, on_delete=models.PROTECT, related_name="reports"
@@ -264,6 +268,9 @@ class Report(models.Model):
     size = models.PositiveIntegerField(default=0)
     software_version = models.CharField(max_length=40, blank=True)
     superseded = models.BooleanField(default=False)
+    #: the status printed in the file, fixed by the comparison's status when it was issued
+    #: (final once published): publication supersedes every preliminary one
+    status = models.CharField(max_length=12, choices=Status.choices, default=Status.PRELIMINARY)
     created_at = models.DateTimeField(auto_now_add=True)
 
     class Meta:

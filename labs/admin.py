@@ -11,6 +11,7 @@ from labs.models import (
     RawRecord,
     Result,
     Submission,
+    SubmissionKey,
 )
 
 
@@ -51,6 +52,15 @@ class SubmissionAdmin(admin.ModelAdmin):
     search_fields = ["participant__code", "participant__laboratory__name"]
     list_select_related = ["participant__comparison", "submitted_by"]
     inlines = [ResultInline]
+
+
+@admin.register(SubmissionKey)
+class SubmissionKeyAdmin(admin.ModelAdmin):
+    list_display = ["participant", "key", "submission", "created_at"]
+    list_filter = ["participant__comparison"]
+    search_fields = ["key", "participant__code", "participant__laboratory__name"]
+    list_select_related = ["participant__comparison", "submission"]
+    raw_id_fields = ["participant", "submission"]
 
 
 @admin.register(Result)

@@ -111,6 +111,9 @@ class Submission(models.Model):
     created_at = models.DateTimeField(auto_now_add=True)
     submitted_at = models.DateTimeField(null=True, blank=True)
     decided_at = models.DateTimeField(null=True, blank=True)
+    #: SHA-256 of the stored results (point, value, unit, U, k, dof, note by point): an
+    #: identical submission sent again shortly after answers this version
+    content_sha256 = models.CharField(max_length=64, blank=True)
 
     class Meta:
         ordering = ["participant", "-version"]
@@ -125,6 +128,31 @@ class Submission(models.Model):
 
     def __str__(self) -> str:
         return f"{self.participant} v{self.version} ({self.status})"
+
+
+class SubmissionKey(models.Model):
+    """An ``Idempotency-Key`` a participant sent with a submission request, kept for
+    ``IDEMPOTENCY_KEY_HOURS``: the same key with the same content answers ``submission``
+    again; with other content it is refused (422)."""
+
+    participant = models.ForeignKey(
+        Participant, on_delete=models.CASCADE, related_name="submission_keys"
+    )
+    key = models.CharField(max_length=255)
+    #: SHA-256 of what was asked: the results' content and the submit flag
+    fingerprint = models.CharField(max_length=64)
+    submission = models.ForeignKey(
+        Submission, on_delete=models.CASCADE, related_name="request_keys"
+    )
+    created_at = models.DateTimeField(auto_now_add=True, db_index=True)
+
+    class Meta:
+        constraints = [
+            models.UniqueConstraint(fields=["participant", "key"], name="submission_key_unique")
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.participant} key {self.key[:12]}"
 
 
 class Result(models.Model):

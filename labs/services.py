@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import datetime as dt
+import hashlib
 import secrets
 from collections.abc import Sequence
 
+from django.conf import settings
 from django.contrib.auth.models import AbstractBaseUser
 from django.db import IntegrityError, connections, router, transaction
 from django.db.backends.base.base import BaseDatabaseWrapper
@@ -18,9 +21,9 @@ from labs.importers import (
     parse_rows,
     parse_table,
 )
-from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission
+from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission, SubmissionKey
 from labs.selectors import ComparisonTable, comparison_table
-from proficiency.errors import InvalidTransition, StateConflict, ValidationFailed
+from proficiency.errors import InvalidTransition, KeyReused, StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus
 
 CODE_PREFIX = "L"
@@ -145,6 +148,7 @@ def submission_save(
     user: AbstractBaseUser | None,
     submit: bool,
     table: ComparisonTable | None = None,
+    idempotency_key: str = "",
 ) -> Submission:
     """Store a participant's results, all or nothing (the one path for grid, upload and API).
 
@@ -154,24 +158,40 @@ def submission_save(
     submitting needs a result for every measurement point and makes the draft (or a new
     version) ``submitted``.  Decided versions are never touched: a correction is a new
     version.  The participant row is locked so versions never collide.
+
+    Retries answer the version already stored (marked ``replayed = True``), decided under
+    the same lock, so two identical requests at once store one version: a request with
+    the ``idempotency_key`` of an earlier one (kept ``IDEMPOTENCY_KEY_HOURS``) answers its
+    version, or :class:`KeyReused` (422) when its content or submit flag differ; without a
+    key, results identical to the latest version's from the same source, submitted again
+    within ``SUBMISSION_DEDUP_SECONDS`` of it (or saved again as the same draft), answer it.
     """
     Participant.objects.select_for_update().get(pk=participant.pk)
     comparison = participant.comparison
-    submission_window_check(comparison)
     table = table or comparison_table(comparison)
-    if submit and (missing := missing_points(rows, table.context)):
-        raise _missing_error(missing)
+    values = _result_values(rows, table)
+    content = _content_sha256(values)
+    fingerprint = hashlib.sha256(f"{content} submit={bool(submit)}".encode()).hexdigest()
+    now = timezone.now()
+    if idempotency_key and (keyed := _keyed(participant, idempotency_key, fingerprint, now)):
+        return _replayed(keyed, participant)
     # the open draft is always the latest version: a new version is made only when there
     # is none, and a draft only ever becomes submitted
     latest = participant.submissions.order_by("-version").first()
+    if not idempotency_key and _same_as(latest, content, source, submit, now):
+        assert latest is not None
+        return _replayed(latest, participant)
+    submission_window_check(comparison)
+    if submit and (missing := missing_points(rows, table.context)):
+        raise _missing_error(missing)
     if latest is not None and latest.status == St.DRAFT:
         draft = latest
         # a draft's results are never scored (only accepted versions are analysed): one
         # DELETE, without the collector reading every row to look for scores
         _results_delete(draft)
-        draft.source, draft.submitted_by = source, user
-        draft.save(update_fields=["source", "submitted_by"])
-        n_results = _results(draft, rows, table)
+        draft.source, draft.submitted_by, draft.content_sha256 = source, user, content
+        draft.save(update_fields=["source", "submitted_by", "content_sha256"])
+        n_results = _results(draft, values)
         saved = submission_transition(submission=draft, to=St.SUBMITTED) if submit else draft
     else:
         # a new version is stored submitted at once when submitted (no draft step)
@@ -182,12 +202,71 @@ def submission_save(
             submitted_by=user,
             status=St.SUBMITTED if submit else St.DRAFT,
             submitted_at=timezone.now() if submit else None,
+            content_sha256=content,
         )
-        n_results = _results(saved, rows, table)
+        n_results = _results(saved, values)
+    if idempotency_key:
+        SubmissionKey.objects.create(
+            participant=participant, key=idempotency_key, fingerprint=fingerprint, submission=saved
+        )
     # the version's result count, as the history annotates it (the API's n_results): the
     # rows just stored are all its results (a draft's earlier ones were deleted above)
     saved.n_results = n_results  # type: ignore[attr-defined]
+    saved.replayed = False  # type: ignore[attr-defined]
     return saved
+
+
+def _keyed(
+    participant: Participant, key: str, fingerprint: str, now: dt.datetime
+) -> Submission | None:
+    """The version an earlier request with this key made, if the key is still kept; an
+    expired key is forgotten (deleted) and the request is new."""
+    entry = SubmissionKey.objects.filter(participant=participant, key=key).first()
+    if entry is None:
+        return None
+    if entry.created_at < now - dt.timedelta(hours=settings.IDEMPOTENCY_KEY_HOURS):
+        entry.delete()
+        return None
+    if entry.fingerprint != fingerprint:
+        raise KeyReused(
+            f"The Idempotency-Key {key!r} was already used at {entry.created_at:%Y-%m-%d %H:%M} "
+            "UTC with other results or another submit flag; send a new key for a new request.",
+            errors=[{"field": "Idempotency-Key", "message": "already used for another request"}],
+        )
+    return Submission.objects.get(pk=entry.submission_id)
+
+
+def _same_as(
+    latest: Submission | None, content: str, source: str, submit: bool, now: dt.datetime
+) -> bool:
+    """Whether a request without a key repeats ``latest``: the same results from the same
+    source (web grid, file, API) submitted again (``latest`` submitted or accepted within
+    ``SUBMISSION_DEDUP_SECONDS``), or the same draft saved again (nothing would change)."""
+    if latest is None or not latest.content_sha256 or latest.content_sha256 != content:
+        return False
+    if latest.source != source:
+        return False
+    if not submit:
+        return latest.status == St.DRAFT
+    window = dt.timedelta(seconds=settings.SUBMISSION_DEDUP_SECONDS)
+    recent = latest.submitted_at is not None and latest.submitted_at >= now - window
+    return latest.status in (St.SUBMITTED, St.ACCEPTED) and recent
+
+
+def _replayed(submission: Submission, participant: Participant) -> Submission:
+    submission.participant = participant
+    submission.replayed = True  # type: ignore[attr-defined]
+    return submission
+
+
+def _content_sha256(values: Sequence[tuple[object, ...]]) -> str:
+    """SHA-256 of the results' values by measurement point (``repr`` of each value: floats
+    exactly), whatever their order or source (grid, file, JSON)."""
+    digest = hashlib.sha256()
+    for value in sorted(values, key=lambda v: v[0]):  # type: ignore[arg-type, return-value]
+        digest.update(repr(value).encode())
+        digest.update(b"\n")
+    return digest.hexdigest()
 
 
 def _results_delete(submission: Submission) -> None:
@@ -198,13 +277,19 @@ def _results_delete(submission: Submission) -> None:
         cursor.execute(f"DELETE FROM {table} WHERE {column} = %s", [submission.pk])
 
 
-def _results(submission: Submission, rows: list[ResultRow], table: ComparisonTable) -> int:
-    """Insert one :class:`Result` per row, on the one measurement point it fits; the count.
+def _results(submission: Submission, values: list[tuple[object, ...]]) -> int:
+    """Insert one :class:`Result` per value tuple (:func:`_result_values`); the count.
 
     One ``COPY`` on PostgreSQL, one ``executemany`` elsewhere: 100,000 model instances
     and bulk_create's per-value SQL compilation took about 4 s, this takes 0.6 s.
     The database still enforces every constraint of ``Result``.
     """
+    return results_insert([(submission.pk, *v) for v in values])
+
+
+def _result_values(rows: list[ResultRow], table: ComparisonTable) -> list[tuple[object, ...]]:
+    """(point id, value, unit, U, k, dof, note) of each row, on the one measurement point
+    it fits."""
     values = []
     for row in rows:
         # The importer already refused a row fitting no point or several: never store a guess.
@@ -216,10 +301,10 @@ def _results(submission: Submission, rows: list[ResultRow], table: ComparisonTab
             )
         point_id = table.point_ids[matches[0]]
         values.append(
-            (submission.pk, point_id, row.sensitivity, row.unit, row.expanded_uncertainty,
+            (point_id, row.sensitivity, row.unit, row.expanded_uncertainty,
              row.coverage_factor, row.dof, row.note)
         )  # fmt: skip
-    return results_insert(values)
+    return values
 
 
 RESULT_COLUMNS = ("submission", "measurement_point", "value", "unit", "expanded_uncertainty",
@@ -270,6 +355,7 @@ def submission_from_file(
     filename: str | None,
     user: AbstractBaseUser | None,
     submit: bool,
+    idempotency_key: str = "",
 ) -> Submission:
     """A CSV/XLSX upload (formats.md §1): parse against the comparison, then save."""
     table = comparison_table(participant.comparison)
@@ -279,7 +365,7 @@ def submission_from_file(
         raise _import_failed(exc) from None
     return submission_save(
         participant=participant, rows=rows, source=Submission.Source.FILE, user=user,
-        submit=submit, table=table,
+        submit=submit, table=table, idempotency_key=idempotency_key,
     )  # fmt: skip
 
 
@@ -290,6 +376,7 @@ def submission_from_records(
     source: str,
     user: AbstractBaseUser | None,
     submit: bool,
+    idempotency_key: str = "",
 ) -> Submission:
     """JSON rows from the API or the web grid: same rules as a file."""
     table = comparison_table(participant.comparison)
@@ -298,8 +385,9 @@ def submission_from_records(
     except ImportErrors as exc:
         raise _import_failed(exc) from None
     return submission_save(
-        participant=participant, rows=rows, source=source, user=user, submit=submit, table=table
-    )
+        participant=participant, rows=rows, source=source, user=user, submit=submit,
+        table=table, idempotency_key=idempotency_key,
+    )  # fmt: skip
 
 
 def api_key_create(

@@ -51,6 +51,12 @@ class RequestTooLarge(ApplicationError):
     status_code = 413
 
 
+class KeyReused(ApplicationError):
+    """422: an ``Idempotency-Key`` sent again with a different request."""
+
+    status_code = 422
+
+
 class NotVisible(ApplicationError):
     """The object does not exist for this user (also for other labs' objects)."""
 

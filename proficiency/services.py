@@ -171,10 +171,13 @@ def comparison_apply_template(
 
 def comparison_publish(*, comparison: Comparison, user: object | None = None) -> Comparison:
     """analysed → published: results become visible to the participants, who are told by
-    e-mail (console back end by default). Reports are issued by the report service."""
+    e-mail (console back end by default). Reports are issued by the report service: in
+    the transaction of the status change every preliminary report is superseded, and after
+    commit the tasks issue the final versions (a report still rendering for the analysed
+    comparison holds the comparison's row, so the status change waits for it)."""
     from django.core.mail import send_mass_mail
 
-    from analysis.reports.services import reports_enqueue
+    from analysis.reports.services import reports_enqueue, reports_preliminary_supersede
     from labs.models import Membership
 
     if not Comparison.objects.filter(pk=comparison.pk).exclude(authorised_by_name="").exists():
@@ -183,8 +186,10 @@ def comparison_publish(*, comparison: Comparison, user: object | None = None) ->
             "which need the name and role of the person authorising them. Enter them under "
             "'Report comments and authorisation' on the comparison's page, then publish."
         )
-    published = comparison_transition(comparison=comparison, to=S.PUBLISHED)
-    reports_enqueue(comparison_id=published.pk)  # issued by Celery after commit
+    with transaction.atomic():
+        published = comparison_transition(comparison=comparison, to=S.PUBLISHED)
+        reports_preliminary_supersede(comparison=published)
+        reports_enqueue(comparison_id=published.pk)  # issued by Celery after commit
     emails = sorted(
         set(
             Membership.objects.filter(

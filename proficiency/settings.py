@@ -263,6 +263,10 @@ MAX_UPLOAD_BYTES = env.int("MAX_UPLOAD_BYTES", default=5 * 1024 * 1024)
 RAW_UPLOAD_MAX_BYTES = env.int("RAW_UPLOAD_MAX_BYTES", default=50 * 1024 * 1024)
 DATA_UPLOAD_MAX_MEMORY_SIZE = env.int("DATA_UPLOAD_MAX_MEMORY_SIZE", default=20 * 1024 * 1024)
 FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
+# Submissions: an Idempotency-Key is kept this long; identical results submitted again
+# without a key within SUBMISSION_DEDUP_SECONDS answer the version already stored.
+IDEMPOTENCY_KEY_HOURS = env.int("IDEMPOTENCY_KEY_HOURS", default=24)
+SUBMISSION_DEDUP_SECONDS = env.int("SUBMISSION_DEDUP_SECONDS", default=600)
 
 # PT provider shown on reports and pages.
 PT_PROVIDER_NAME = env.str("PT_PROVIDER_NAME", default="Demo PT Provider")

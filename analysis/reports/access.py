@@ -1,7 +1,8 @@
 """Who may see which report (read side, shared by the API and the web page).
 
 Coordinators: every report of their comparison, preliminary ones included.
-Participants: once the comparison is published, the summary and their own reports.
+Participants: once the comparison is published, the final versions of the summary and of
+their own report (never a preliminary one, even one issued before publication).
 Everything else is NotVisible (404): another lab's report cannot be confirmed to exist.
 """
 
@@ -20,7 +21,10 @@ def reports_visible(access: ComparisonAccess) -> QuerySet[Report]:
     if not access.is_coordinator:
         if access.participant is None or access.comparison.status != ComparisonStatus.PUBLISHED:
             return found.none()
-        found = found.filter(Q(kind=Report.Kind.SUMMARY) | Q(participant=access.participant))
+        found = found.filter(
+            Q(kind=Report.Kind.SUMMARY) | Q(participant=access.participant),
+            status=Report.Status.FINAL,
+        )
     return found.order_by("kind", "participant__code", "-version")
 
 

@@ -36,6 +36,7 @@ class ReportSerializer(serializers.ModelSerializer):
             "kind",
             "participant",
             "version",
+            "status",
             "superseded",
             "run",
             "sha256",

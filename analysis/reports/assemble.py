@@ -331,6 +331,7 @@ def report_data(
     own: tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]] | None = None,
     common: ComparisonCommon | None = None,
     context: RunContext | None = None,
+    status: str | None = None,
 ) -> ReportData:
     """The data of the summary report (``participant`` None) or of one participant's.
 
@@ -338,8 +339,10 @@ def report_data(
     coordinator); ``authorised_by`` and ``comments`` override them when given.  The run's
     shared data comes from :func:`run_context`; a batch passes the participant's ``own``
     rows (:func:`participant_rows`), the ``common`` comparison data and the ``context`` it
-    read once.  The summary of a large round lists every result from columns
-    (:func:`result_listing`), not from row objects: its ``results`` and ``scores`` are empty."""
+    read once; ``status`` (preliminary / final), the issuing code's, read under its lock,
+    else :func:`report_status` of the comparison.  The summary of a large round lists
+    every result from columns (:func:`result_listing`), not from row objects: its
+    ``results`` and ``scores`` are empty."""
     comparison = run.comparison
     context = context or run_context(run)
     common = common or comparison_common(comparison)
@@ -360,7 +363,7 @@ def report_data(
         comparison_title=comparison.title,
         report_number=report_number(comparison, participant, edition),
         issue_date=run.finished_at,
-        status=report_status(comparison, authorised_by),
+        status=status or report_status(comparison, authorised_by),
         authorised_by=authorised_by or authoriser(comparison),
         coordinators=common.coordinators,
         software_version=proficiency.__version__,

@@ -1,7 +1,11 @@
 """Issuing PT reports: render the current run, store the PDF, version and supersede.
 
 A report is never changed once stored: a reissue is a new version, and the older
-versions are kept with ``superseded = True``.
+versions are kept with ``superseded = True``.  A report records the status it was
+issued for (``Report.status``: preliminary while analysed, final once published, read
+under the issuing lock); publication supersedes every preliminary report in its own
+transaction and the report tasks then issue the final ones, so a preliminary report is
+never the current report of a published comparison.
 """
 
 from __future__ import annotations
@@ -13,7 +17,7 @@ from collections.abc import Sequence
 from auditlog.context import set_actor
 from django.conf import settings
 from django.core.files.base import ContentFile
-from django.db import transaction
+from django.db import connections, router, transaction
 from django.db.models import Max
 
 import proficiency
@@ -25,6 +29,7 @@ from analysis.reports.assemble import (
     comparison_common,
     participant_rows,
     report_data,
+    report_status,
     run_context,
 )
 from analysis.reports.data import ResultRow, ScoreRow
@@ -131,7 +136,6 @@ def report_edition(previous_runs: Sequence[int | None], run: AnalysisRun) -> int
     return order.index(run.pk) + 1
 
 
-@transaction.atomic
 def report_issue(
     *,
     comparison: Comparison,
@@ -145,10 +149,34 @@ def report_issue(
     The row lock that serialises the versions of one report is the participant's for a
     participant report and the comparison's for the summary, so that workers render the
     reports of different participants in parallel."""
+    report = _issue(comparison, kind, participant, authorised_by, comments, reuse=None)
+    assert report is not None
+    return report
+
+
+@transaction.atomic
+def _issue(
+    comparison: Comparison,
+    kind: str,
+    participant: Participant | None,
+    authorised_by: str,
+    comments: str,
+    reuse: AnalysisRun | None,
+) -> Report | None:
+    """:func:`report_issue`; with ``reuse`` (the task's run), the current report of that
+    run and of the comparison's status when there is one (looked up under the lock, so
+    two deliveries at once issue one), None when ``reuse`` is no longer the current run."""
     locked = _lock(comparison, participant)
     _check_kind(locked, kind, participant)
     run = _reportable_run(locked)
+    status = _issue_status(locked, authorised_by)
     previous = Report.objects.filter(comparison=locked, kind=kind, participant=participant)
+    if reuse is not None:
+        if run != reuse:
+            return None
+        found = previous.filter(run=run, status=status, superseded=False).order_by("-version")
+        if (current := found.first()) is not None:
+            return current
     runs = list(previous.order_by("version").values_list("run_id", flat=True))
     pdf = render_report(
         report_data(
@@ -157,10 +185,11 @@ def report_issue(
             edition=report_edition(runs, run),
             authorised_by=authorised_by,
             comments=comments,
+            status=status,
         )
     )
     version = (previous.aggregate(v=Max("version"))["v"] or 0) + 1
-    report = _store(run, kind, participant, version, pdf)
+    report = _store(run, kind, participant, version, pdf, status)
     previous.exclude(pk=report.pk).filter(superseded=False).update(superseded=True)
     return report
 
@@ -168,8 +197,44 @@ def report_issue(
 def _lock(comparison: Comparison, participant: Participant | None) -> Comparison:
     if participant is None:
         return Comparison.objects.select_for_update().get(pk=comparison.pk)
+    held = _hold_status(comparison.pk)
     _lock_participant(participant)
-    return Comparison.objects.get(pk=comparison.pk)
+    return held
+
+
+def _hold_status(comparison_id: int, known: Comparison | None = None) -> Comparison:
+    """The comparison whose report is about to be rendered, its status held until the
+    report is stored.  Published is final: read as is.  Before publication the row is
+    read ``FOR SHARE`` (PostgreSQL; other databases: ``FOR UPDATE``, a no-op on SQLite,
+    which runs one writer at a time): publication's ``FOR UPDATE`` waits for this
+    transaction, and a report that had to wait for a publication reads it, so a
+    preliminary report is never stored after publication.  Participant reports of one
+    comparison share the lock (they still render in parallel); the comparison's lock is
+    always taken before the participant's, as the submission import does.  ``known``:
+    the comparison as the caller read it, enough when it was published already."""
+    found = known if known is not None else Comparison.objects.get(pk=comparison_id)
+    if found.status == ComparisonStatus.PUBLISHED:
+        return found
+    connection = connections[router.db_for_write(Comparison)]
+    if connection.vendor != "postgresql":
+        return Comparison.objects.select_for_update().get(pk=comparison_id)
+    table = connection.ops.quote_name(Comparison._meta.db_table)
+    pk = connection.ops.quote_name(Comparison._meta.pk.column)
+    query = f"SELECT * FROM {table} WHERE {pk} = %s FOR SHARE"
+    return next(iter(Comparison.objects.raw(query, [comparison_id])))
+
+
+def _issue_status(comparison: Comparison, authorised_by: str = "") -> str:
+    """The status a report issued now carries (the comparison read under the lock):
+    final once published, preliminary before; a published comparison's report is never
+    preliminary (publication needs an authoriser, who cannot be removed afterwards)."""
+    status = report_status(comparison, authorised_by)
+    if comparison.status == ComparisonStatus.PUBLISHED and status != Report.Status.FINAL:
+        raise StateConflict(
+            f"{comparison.code} is published: its reports are final and need the name and "
+            "role of the person authorising them."
+        )
+    return status
 
 
 def _lock_participant(participant: Participant) -> None:
@@ -182,21 +247,16 @@ def _lock_participant(participant: Participant) -> None:
 
 
 def report_issue_once(*, run_id: int, kind: str, participant_id: int | None) -> Report | None:
-    """Issue unless a current (not superseded) report of this run already exists.
+    """Issue unless a current (not superseded) report of this run, for the comparison's
+    status (preliminary / final), already exists.
 
-    The task body: safe to run twice. Returns None when the run is no longer current."""
+    The task body: safe to run twice, even at once (the check is made under the report's
+    lock). Returns None when the run is no longer current."""
     run = AnalysisRun.objects.select_related("comparison").get(pk=run_id)
     if current_run(run.comparison) != run:
         return None
-    existing = Report.objects.filter(run=run, kind=kind, superseded=False).filter(
-        participant__isnull=participant_id is None
-    )
-    if participant_id is not None:
-        existing = existing.filter(participant__pk=participant_id)
-    if existing.exists():
-        return existing.get()
     participant = Participant.objects.get(pk=participant_id) if participant_id else None
-    return report_issue(comparison=run.comparison, kind=kind, participant=participant)
+    return _issue(run.comparison, kind, participant, "", "", reuse=run)
 
 
 def report_issue_batch(*, run_id: int, participant_ids: Sequence[int]) -> list[int]:
@@ -217,7 +277,11 @@ def report_issue_batch(*, run_id: int, participant_ids: Sequence[int]) -> list[i
     ids = list(dict.fromkeys(participant_ids))
     done = dict(
         Report.objects.filter(
-            run=run, kind=Report.Kind.PARTICIPANT, superseded=False, participant_id__in=ids
+            run=run,
+            kind=Report.Kind.PARTICIPANT,
+            superseded=False,
+            status=report_status(comparison),
+            participant_id__in=ids,
         ).values_list("participant_id", "pk")
     )
     todo = [pk for pk in ids if pk not in done]
@@ -268,34 +332,47 @@ def _issue_current(
     common: ComparisonCommon,
     context: RunContext,
 ) -> Report:
-    """The current participant report of ``run``: found under the participant's row lock,
-    else rendered and stored (superseding the older versions)."""
+    """The current participant report of ``run`` for the comparison's status (read under
+    the locks: :func:`_hold_status`): found under the participant's row lock, else
+    rendered and stored (superseding the older versions, a preliminary one included)."""
+    status = _issue_status(_hold_status(run.comparison_id, known=run.comparison))
     _lock_participant(participant)
     history = list(
         Report.objects.filter(
             comparison_id=run.comparison_id, kind=Report.Kind.PARTICIPANT, participant=participant
         )
         .order_by("version")
-        .values_list("pk", "run_id", "version", "superseded")
+        .values_list("pk", "run_id", "version", "superseded", "status")
     )
-    current = [pk for pk, run_id, _, superseded in history if run_id == run.pk and not superseded]
-    newer = [pk for pk, run_id, _, _ in history if run_id is not None and run_id > run.pk]
+    current = [
+        pk
+        for pk, run_id, _, superseded, made_for in history
+        if run_id == run.pk and not superseded and made_for == status
+    ]
+    newer = [pk for pk, run_id, *_ in history if run_id is not None and run_id > run.pk]
     if current or newer:  # newer: a later run became current during this batch
         return Report.objects.get(pk=(current or newer)[-1])
-    edition = report_edition([r for _, r, _, _ in history], run)
+    edition = report_edition([r for _, r, *_ in history], run)
     data = report_data(
-        run=run, participant=participant, edition=edition, own=own, common=common, context=context
-    )
-    version = max((v for _, _, v, _ in history), default=0) + 1
-    report = _store(run, Report.Kind.PARTICIPANT, participant, version, render_report(data))
-    older = [pk for pk, _, _, superseded in history if not superseded]
+        run=run, participant=participant, edition=edition, own=own, common=common,
+        context=context, status=status,
+    )  # fmt: skip
+    version = max((v for _, _, v, *_ in history), default=0) + 1
+    pdf = render_report(data)
+    report = _store(run, Report.Kind.PARTICIPANT, participant, version, pdf, status)
+    older = [pk for pk, _, _, superseded, _ in history if not superseded]
     if older:
         Report.objects.filter(pk__in=older).update(superseded=True)
     return report
 
 
 def _store(
-    run: AnalysisRun, kind: str, participant: Participant | None, version: int, pdf: bytes
+    run: AnalysisRun,
+    kind: str,
+    participant: Participant | None,
+    version: int,
+    pdf: bytes,
+    status: str,
 ) -> Report:
     report = Report(
         comparison=run.comparison,
@@ -303,6 +380,7 @@ def _store(
         kind=kind,
         participant=participant,
         version=version,
+        status=status,
         sha256=hashlib.sha256(pdf).hexdigest(),
         size=len(pdf),
         software_version=proficiency.__version__,
@@ -366,12 +444,23 @@ def _send_reports_task(comparison_id: int) -> bool:
 
 
 def reports_missing(comparison: Comparison) -> int:
-    """How many reports (summary + one per participant) of the current run are not issued."""
+    """How many reports (summary + one per participant) of the current run are not issued
+    for the comparison's status (a preliminary report of a published comparison is missing
+    its final version)."""
     run = current_run(comparison)
     if run is None:
         return 0
-    issued = Report.objects.filter(run=run, superseded=False).values("kind", "participant")
-    return 1 + comparison.participants.count() - issued.distinct().count()
+    issued = Report.objects.filter(run=run, superseded=False, status=report_status(comparison))
+    n_issued = issued.values("kind", "participant").distinct().count()
+    return 1 + comparison.participants.count() - n_issued
+
+
+def reports_preliminary_supersede(*, comparison: Comparison) -> int:
+    """Publication's step, in its transaction: every current preliminary report (summary
+    and participants') becomes superseded; the report tasks issue the final versions.
+    The number superseded; idempotent."""
+    current = Report.objects.filter(comparison=comparison, superseded=False)
+    return current.exclude(status=Report.Status.FINAL).update(superseded=True)
 
 
 def reports_pending_enqueue() -> int:

@@ -67,10 +67,46 @@ SUBMIT_ERRORS = {
     403: _error("You coordinate this comparison but are not a participant"),
     409: _error("The comparison is not open, or its deadline has passed"),
     413: _error("The request body or the file is too large"),
+    422: _error("The Idempotency-Key was already used for another request"),
 }
 CODE = OpenApiParameter(
     "code", OpenApiTypes.STR, OpenApiParameter.PATH, description="Comparison code"
 )
+IDEMPOTENCY_KEY = OpenApiParameter(
+    "Idempotency-Key",
+    OpenApiTypes.STR,
+    OpenApiParameter.HEADER,
+    required=False,
+    description=(
+        "Optional, 1-255 printable ASCII characters, unique per request (e.g. a UUID): "
+        "a retry with the same key answers the version the first request stored (201, "
+        "same body, header `Idempotent-Replayed: true`); the same key with other results "
+        "or another `submit` answers 422. Keys are kept IDEMPOTENCY_KEY_HOURS (24 h)."
+    ),
+)
+MAX_KEY_LENGTH = 255
+REPLAYED = {"Idempotent-Replayed": "true"}
+
+
+def idempotency_key(request: Request) -> str:
+    """The request's ``Idempotency-Key`` header ("" when absent), or a 400 naming it."""
+    key = request.headers.get("Idempotency-Key")
+    if key is None:
+        return ""
+    key = key.strip()
+    if not 1 <= len(key) <= MAX_KEY_LENGTH or not all(" " < c <= "~" for c in key):
+        raise ValidationFailed(
+            f"The Idempotency-Key header must be 1 to {MAX_KEY_LENGTH} printable ASCII "
+            f"characters without spaces (got {len(key)} characters).",
+            errors=[{"field": "Idempotency-Key", "message": "not a valid key"}],
+        )
+    return key
+
+
+def submission_answer(submission: Submission) -> Response:
+    """201 with the version; a retry answered by the version already stored says so."""
+    headers = REPLAYED if getattr(submission, "replayed", False) else None
+    return Response(s.SubmissionSerializer(submission).data, status=201, headers=headers)
 
 
 def validated(serializer_class: type[serializers.Serializer], data: Any) -> dict[str, Any]:
@@ -259,13 +295,14 @@ class SubmissionCollection(ApiView, ValuesListView):
 
     @extend_schema(
         tags=["submissions"],
-        parameters=[CODE],
+        parameters=[CODE, IDEMPOTENCY_KEY],
         request=s.SubmissionRequestSerializer,
         responses={201: s.SubmissionSerializer, **SUBMIT_ERRORS, **AUTH_ERRORS, **NOT_VISIBLE},
     )
     def post(self, request: Request, code: str) -> Response:
         """Submit results as JSON rows (all or nothing); returns the new or updated version."""
         participant = require_participant(self.access(code))
+        key = idempotency_key(request)
         data = validated(s.SubmissionRequestSerializer, request.data)
         submission = submission_from_records(
             participant=participant,
@@ -273,13 +310,14 @@ class SubmissionCollection(ApiView, ValuesListView):
             source=Submission.Source.API,
             user=caller_of(request).user,
             submit=data["submit"],
+            idempotency_key=key,
         )
-        return Response(s.SubmissionSerializer(submission).data, status=201)
+        return submission_answer(submission)
 
 
 @extend_schema(
     tags=["submissions"],
-    parameters=[CODE],
+    parameters=[CODE, IDEMPOTENCY_KEY],
     request={"multipart/form-data": s.UploadRequestSerializer},
     responses={201: s.SubmissionSerializer, **SUBMIT_ERRORS, **AUTH_ERRORS, **NOT_VISIBLE},
 )
@@ -295,6 +333,7 @@ class SubmissionUpload(ApiView):
 
     def post(self, request: Request, code: str) -> Response:
         participant = require_participant(self.access(code))
+        key = idempotency_key(request)
         data = validated(s.UploadRequestSerializer, request.data)
         upload = data["file"]
         if upload.size > settings.MAX_UPLOAD_BYTES:
@@ -308,8 +347,9 @@ class SubmissionUpload(ApiView):
             filename=upload.name,
             user=caller_of(request).user,
             submit=data["submit"],
+            idempotency_key=key,
         )
-        return Response(s.SubmissionSerializer(submission).data, status=201)
+        return submission_answer(submission)
 
 
 @extend_schema(

@@ -449,10 +449,11 @@ def test_housekeeping_deletes_only_what_expired_and_is_scheduled(settings):
     for days in (400, 10):
         log = AccessLog.objects.create(username="u", ip_address="127.0.0.1", user_agent="t")
         AccessLog.objects.filter(pk=log.pk).update(attempt_time=now - timedelta(days))
-    assert housekeeping.delay().get() == {"sessions": 1, "login_records": 1}
+    assert housekeeping.delay().get() == {"sessions": 1, "login_records": 1, "submission_keys": 0}
     assert list(Session.objects.values_list("session_key", flat=True)) == ["live"]
     assert AccessLog.objects.count() == 1
-    assert housekeeping.delay().get() == {"sessions": 0, "login_records": 0}  # idempotent
+    again = {"sessions": 0, "login_records": 0, "submission_keys": 0}
+    assert housekeeping.delay().get() == again  # idempotent
     entry = settings.CELERY_BEAT_SCHEDULE["housekeeping"]
     assert entry["task"] in app.tasks
 

@@ -34,6 +34,7 @@ from django.test import Client
 from django.urls import reverse
 from rest_framework.views import APIView
 
+from analysis.reports.services import report_issue
 from tests.security.matrix_table import OPTIONAL, PK, PUBLISHED, TABLE, TOKEN
 from tests.security.routes import Route, discover
 from tests.security.world import (
@@ -207,6 +208,12 @@ def test_published_results_show_codes_never_names(world):
     world.c1.status = "published"
     world.c1.authorised_by_name, world.c1.authorised_by_role = "A. Signer", "Head"
     world.c1.save()
+    # participants read final reports only: lab A's report of the published comparison
+    preliminary = world.report_a
+    world.report_a = report_issue(
+        comparison=world.c1, kind="participant", participant=preliminary.participant
+    )
+    assert (preliminary.status, world.report_a.status) == ("preliminary", "final")
     clients = {p: world.client(p) for p in PERSONAS}
     routes = {r.route: r for r in discover()}
     problems = []
@@ -222,6 +229,9 @@ def test_published_results_show_codes_never_names(world):
             if persona in OUTSIDERS and persona != "b_staff" and _leaks(body):
                 problems.append(f"GET {url} as {persona}: lab A's {_leaks(body)}")
     assert not problems, "\n".join(problems)
+    old = f"/api/v1/reports/{preliminary.token}/pdf"
+    assert _request(clients["a_staff"], "GET", old, True).status_code == 404
+    assert _request(clients["coord1"], "GET", old, True).status_code == 200
     own = _request(clients["b_staff"], "GET", f"/api/v1/comparisons/{world.c1.code}/scores/", True)
     labs = {s["lab"] for s in json.loads(own.body)["results"]}  # type: ignore[attr-defined]
     assert labs == {"KB2"}
