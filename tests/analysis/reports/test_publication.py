@@ -258,7 +258,7 @@ def test_migration_marks_old_reports_by_the_audit_logs_publication_time(stand_in
 
     from django.apps import apps
 
-    migration = importlib.import_module("analysis.migrations.0006_report_status")
+    migration = importlib.import_module("analysis.migrations.0007_report_status")
     comparison = analysed.comparison
     early = report_issue(comparison=comparison, kind="summary")
     comparison_publish(comparison=comparison)

@@ -43,7 +43,7 @@ def forwards(apps, schema_editor):
 
 class Migration(migrations.Migration):
     dependencies = [
-        ("analysis", "0005_score_run_no_db_constraint"),
+        ("analysis", "0006_run_heartbeats_and_claims"),
         ("auditlog", "0015_alter_logentry_changes"),
         ("contenttypes", "0002_remove_content_type_name"),
         ("proficiency", "0002_report_notes"),

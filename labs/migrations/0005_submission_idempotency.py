@@ -7,7 +7,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('labs', '0003_raw_records'),
+        ('labs', '0004_raw_recomputation_heartbeat'),
     ]
 
     operations = [

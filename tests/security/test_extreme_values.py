@@ -1,0 +1,158 @@
+"""Every numeric field of a result, swept through its extremes: upload → run → report.
+
+A value is either refused at validation, with a 400 naming its row and column and nothing
+stored, or it is accepted, and then the statistics carry it: the analysis run of the round
+succeeds, every stored score and assigned value is finite (or absent where a score does not
+apply), and the participant's report and the summary are issued. A value that passes
+validation and breaks the run later would stop the round for every laboratory.
+
+The accepted values of one field go into one submission, one value at each measurement
+point, so that the round-wide steps (bench and laboratory matrices, the report's tables)
+meet all of them at once.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+
+import pytest
+from pypdf import PdfReader
+from rest_framework.test import APIClient
+
+from analysis.models import AnalysisRun, AssignedValue, Report, Score
+from analysis.reports.services import report_issue
+from analysis.services import analysis_run_start
+from labs.models import Participant, Result, Submission
+from labs.review import submission_decide
+from labs.services import api_key_create
+from proficiency.models import AssignedValueMethod, ComparisonStatus, SigmaPtMode
+from tests.factories import (
+    ComparisonFactory,
+    DeviceFactory,
+    LaboratoryFactory,
+    MeasurementPointFactory,
+)
+
+pytestmark = pytest.mark.django_db
+
+CODE = "SWEEP-01"
+SUBMIT = f"/api/v1/comparisons/{CODE}/submissions/"
+AXES, FREQUENCIES = ("X", "Y", "Z"), (5.0, 10.0, 20.0, 40.0, 80.0, 160.0)
+
+#: the edges of double precision and a little inside them, as a lab's software would send
+EXTREMES = (
+    "5e-324", "2.2250738585072014e-308", "1e-300", "1e-200", "1e-160", "1e-150", "1e-100",
+    "1e-30", "1e30", "1e100", "1e150", "1e160", "1e200", "1e300", "1e308",
+    "1.7976931348623157e308", "1e309", "-1e308", "-1e-300", "0", "-0", "inf", "-inf", "nan",
+)  # fmt: skip
+FIELDS = ("sensitivity", "expanded_uncertainty", "relative_uncertainty", "coverage_factor", "dof")
+
+
+def _row(point, value=420.0, u="8"):
+    return {
+        "device": point.device.name, "axis": point.axis, "frequency_hz": point.frequency_hz,
+        "bench": point.bench, "sensitivity": value, "expanded_uncertainty": u,
+    }  # fmt: skip
+
+
+def _client(key):
+    c = APIClient()
+    c.credentials(HTTP_AUTHORIZATION=f"Api-Key {key}")
+    return c
+
+
+@pytest.fixture
+def round_(django_capture_on_commit_callbacks):
+    comparison = ComparisonFactory(
+        code=CODE, status=ComparisonStatus.OPEN,
+        assigned_value_method=AssignedValueMethod.WEIGHTED_MEAN,
+        sigma_pt_mode=SigmaPtMode.RELATIVE, sigma_pt_value=1.0,
+        authorised_by_name="Dana Quality", authorised_by_role="Quality manager",
+    )  # fmt: skip
+    device = DeviceFactory(comparison=comparison, name="MEMS 1", nominal_sensitivity=420.0)
+    points = [
+        MeasurementPointFactory(device=device, axis=a, frequency_hz=f)
+        for a in AXES
+        for f in FREQUENCIES
+    ]
+    keys = {}
+    for i, code in enumerate(("SWA", "SWB", "SWC")):
+        lab = LaboratoryFactory(name=f"Sweep lab {code}")
+        Participant.objects.create(comparison=comparison, laboratory=lab, code=code)
+        keys[code] = api_key_create(laboratory=lab, name="soft", user=None)[1]
+        if code != "SWA":
+            rows = [_row(p, 420.0 + 0.5 * i + 0.01 * j) for j, p in enumerate(points)]
+            answer = _client(keys[code]).post(SUBMIT, {"results": rows}, format="json")
+            assert answer.status_code == 201, answer.content
+    return comparison, points, keys, django_capture_on_commit_callbacks
+
+
+def _with(field: str, text: str, point) -> dict:
+    row = _row(point)
+    if field == "relative_uncertainty":
+        row["expanded_uncertainty"] = f"{text}%"
+    elif field in ("coverage_factor", "dof"):
+        row[field] = text
+    else:
+        row[field] = text
+    return row
+
+
+def _finite_or_none(*values) -> bool:
+    return all(v is None or math.isfinite(v) for v in values)
+
+
+@pytest.mark.parametrize("field", FIELDS)
+def test_a_value_is_refused_at_validation_or_carried_to_the_report(round_, field):
+    comparison, points, keys, on_commit = round_
+    lab = _client(keys["SWA"])
+    column = "expanded_uncertainty" if field == "relative_uncertainty" else field
+    accepted: list[str] = []
+    for text in EXTREMES:
+        rows = [_row(p) for p in points]
+        rows[0] = _with(field, text, points[0])
+        before = Result.objects.count()
+        answer = lab.post(SUBMIT, {"results": rows, "submit": False}, format="json")
+        assert answer.status_code in (201, 400), (text, answer.status_code, answer.content)
+        if answer.status_code == 400:
+            errors = answer.json()["errors"]
+            assert [(e["row"], e["field"]) for e in errors] == [(1, column)], (text, errors)
+            assert Result.objects.count() == before, text
+        else:
+            accepted.append(text)
+    # what a metrologist would type must still pass (the bounds are far from real values)
+    assert {"1e-30", "1e30"} <= set(accepted) or field in ("coverage_factor", "dof"), accepted
+    assert not {"inf", "-inf", "nan", "1e309"} & set(accepted), accepted
+
+    rows = [_row(p) for p in points]
+    for i, text in enumerate(accepted):
+        rows[i] = _with(field, text, points[i])
+    final = lab.post(SUBMIT, {"results": rows}, format="json")
+    assert final.status_code == 201, final.content
+    comparison.status = ComparisonStatus.CLOSED
+    comparison.save(update_fields=["status"])
+    for submission in Submission.objects.filter(
+        participant__comparison=comparison, status=Submission.Status.SUBMITTED
+    ):
+        submission_decide(submission=submission, decision="accept", message="", user=None)
+    with on_commit(execute=True):
+        run = analysis_run_start(comparison=comparison, user=None)
+    run.refresh_from_db()
+    assert run.status == AnalysisRun.Status.SUCCEEDED, (field, accepted, run.error)
+    scores = Score.objects.filter(run=run)
+    assert scores.count() == 3 * len(points)
+    assert all(_finite_or_none(s.en, s.zeta, s.z, s.d) for s in scores), field
+    assigned = AssignedValue.objects.filter(run=run)
+    assert all(_finite_or_none(a.value, a.standard_uncertainty) for a in assigned), field
+
+    comparison.refresh_from_db()
+    participant = Participant.objects.get(comparison=comparison, code="SWA")
+    for report in (
+        report_issue(comparison=comparison, kind=Report.Kind.PARTICIPANT, participant=participant),
+        report_issue(comparison=comparison, kind=Report.Kind.SUMMARY),
+    ):
+        with report.file.open("rb") as f:
+            text = "\n".join(p.extract_text() for p in PdfReader(io.BytesIO(f.read())).pages)
+        assert "SWA" in text
+        assert "nan" not in text.lower().split() and "inf" not in text.lower().split()
