@@ -65,14 +65,16 @@ def _weighted(
 ) -> tuple[FloatArray, FloatArray, FloatArray, IntArray]:
     """Weighted mean y, (Σw)^(-1/2), Σw(x − y)² and n per group over ``mask``.
 
-    x is shifted by each group's first result so that identical values give
-    exactly that value and χ² suffers no cancellation.
+    x is shifted by each group's median over ``mask`` so that identical values give
+    exactly that value and χ² suffers no cancellation, also when a group holds a result
+    many orders of magnitude away from the others (shifted by that result, the others
+    would round to it and vanish).
     """
     counts = groups.counts()
-    shift = x[groups.order()[np.cumsum(counts) - counts]]  # first result of each group
+    everyone = bool(mask.all())
+    shift = _median(x, groups, None if everyone else mask)
     idx = groups.index
     dx = x - shift[idx]
-    everyone = bool(mask.all())
     wm = w if everyone else np.where(mask, w, 0.0)
     s1 = groups.sum(wm)
     wdx = wm * dx
@@ -83,6 +85,14 @@ def _weighted(
     chi2 = groups.sum(r)
     n = counts if everyone else np.bincount(idx[mask], minlength=groups.n_groups)
     return shift + dy, 1.0 / np.sqrt(s1), chi2, n
+
+
+def _median(x: FloatArray, groups: Groups, mask: BoolArray | None = None) -> FloatArray:
+    """Median of each group (over ``mask``; 0 for a group with nothing in it)."""
+    padded = groups.padded(x if mask is None else np.where(mask, x, np.nan))
+    empty = np.isnan(padded).all(axis=1)
+    padded[empty] = 0.0
+    return np.nanmedian(padded, axis=1)
 
 
 def _consistency(chi2_obs: FloatArray, n: IntArray, alpha: float) -> dict[str, np.ndarray]:
@@ -224,7 +234,7 @@ def largest_consistent_subset(
     everyone = np.ones(groups.size, dtype=np.bool_)
     full = _consistency(_weighted(xs, w, groups, everyone)[2], groups.counts(), alpha)
     counts = groups.counts()
-    shift = groups.padded(xs)[:, 0]
+    shift = _median(xs, groups)  # as in _weighted: no result vanishes in the shift
     xp = groups.padded(xs - shift[groups.index], fill=0.0)
     wp = groups.padded(w, fill=0.0)
     keep = np.arange(xp.shape[1]) < counts[:, np.newaxis]

@@ -43,10 +43,13 @@ AXES, FREQUENCIES = ("X", "Y", "Z"), (5.0, 10.0, 20.0, 40.0, 80.0, 160.0)
 #: the edges of double precision and a little inside them, as a lab's software would send
 EXTREMES = (
     "5e-324", "2.2250738585072014e-308", "1e-300", "1e-200", "1e-160", "1e-150", "1e-100",
-    "1e-30", "1e30", "1e100", "1e150", "1e160", "1e200", "1e300", "1e308",
+    "1e-30", "1e-20", "1e20", "1e30", "1e100", "1e150", "1e160", "1e200", "1e300", "1e308",
     "1.7976931348623157e308", "1e309", "-1e308", "-1e-300", "0", "-0", "inf", "-inf", "nan",
 )  # fmt: skip
-FIELDS = ("sensitivity", "expanded_uncertainty", "relative_uncertainty", "coverage_factor", "dof")
+FIELDS = (
+    "sensitivity", "expanded_uncertainty", "relative_uncertainty", "coverage_factor", "dof",
+    "sensitivity_over_uncertainty",  # x = v, u = 1/v: x/u and 1/u² at their extremes at once
+)  # fmt: skip
 
 
 def _row(point, value=420.0, u="8"):
@@ -92,6 +95,10 @@ def _with(field: str, text: str, point) -> dict:
     row = _row(point)
     if field == "relative_uncertainty":
         row["expanded_uncertainty"] = f"{text}%"
+    elif field == "sensitivity_over_uncertainty":
+        row["sensitivity"] = text
+        value = float(text)
+        row["expanded_uncertainty"] = repr(2.0 / value) if value else "0"  # u = 1/v
     elif field in ("coverage_factor", "dof"):
         row[field] = text
     else:
@@ -107,7 +114,10 @@ def _finite_or_none(*values) -> bool:
 def test_a_value_is_refused_at_validation_or_carried_to_the_report(round_, field):
     comparison, points, keys, on_commit = round_
     lab = _client(keys["SWA"])
-    column = "expanded_uncertainty" if field == "relative_uncertainty" else field
+    column = {
+        "relative_uncertainty": "expanded_uncertainty",
+        "sensitivity_over_uncertainty": "sensitivity",
+    }.get(field, field)
     accepted: list[str] = []
     for text in EXTREMES:
         rows = [_row(p) for p in points]
@@ -117,13 +127,20 @@ def test_a_value_is_refused_at_validation_or_carried_to_the_report(round_, field
         assert answer.status_code in (201, 400), (text, answer.status_code, answer.content)
         if answer.status_code == 400:
             errors = answer.json()["errors"]
-            assert [(e["row"], e["field"]) for e in errors] == [(1, column)], (text, errors)
+            # k and U are refused together when u = U/k leaves the range
+            fields = {column, "expanded_uncertainty"}
+            if field == "sensitivity_over_uncertainty":  # both cells may be out
+                fields.add("sensitivity")
+            assert 1 <= len(errors) <= 2 and {e["row"] for e in errors} == {1}, (text, errors)
+            assert {e["field"] for e in errors} <= fields, (text, errors)
             assert Result.objects.count() == before, text
         else:
             accepted.append(text)
     # what a metrologist would type must still pass (the bounds are far from real values)
-    assert {"1e-30", "1e30"} <= set(accepted) or field in ("coverage_factor", "dof"), accepted
-    assert not {"inf", "-inf", "nan", "1e309"} & set(accepted), accepted
+    assert {"1e-20", "1e20"} <= set(accepted) or field == "coverage_factor", accepted
+    # an infinite number of degrees of freedom is the GUM's "known exactly"
+    never = {"-inf", "nan"} if field == "dof" else {"inf", "-inf", "nan", "1e309"}
+    assert not never & set(accepted), accepted
 
     rows = [_row(p) for p in points]
     for i, text in enumerate(accepted):

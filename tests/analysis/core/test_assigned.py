@@ -443,3 +443,14 @@ def test_all_labs_identical() -> None:
         a = method(x, u, g0(4))
         assert a.value[0] == 418.0 and a.included.all()
     assert dersimonian_laird(x, u, g0(4)).diagnostics["tau"][0] == 0.0
+
+
+def test_lcs_keeps_small_results_beside_a_huge_one() -> None:
+    """A result 1e30 beside two of about 420: shifted by the huge one, the others rounded
+    to it and the subset's mean came out as 0 (found by the extreme-value sweep)."""
+    a = largest_consistent_subset([1e30, 420.5, 421.0], [4.0] * 3, g0(3))
+    np.testing.assert_array_equal(a.included, [False, True, True])
+    assert a.value[0] == 420.75
+    assert a.diagnostics["chi2_obs"][0] == pytest.approx(0.25**2 / 16 * 2, rel=1e-12)
+    b = largest_consistent_subset([1e-30, 420.5, 421.0], [4.0] * 3, g0(3))
+    assert b.value[0] == 420.75
