@@ -35,6 +35,7 @@ from labs.selectors import results_template as template_bytes
 from proficiency import protocols
 from proficiency import views as proficiency_views
 from proficiency.errors import NotVisible, StateConflict, ValidationFailed
+from proficiency.middleware import validates_own_text
 from proficiency.models import Comparison
 
 CONTENT_TYPES = {
@@ -178,6 +179,7 @@ def _grid_save(request: HttpRequest, participant: Participant, form: ResultGridF
     return True
 
 
+@validates_own_text  # every cell is checked by the importer, named next to its input
 @login_required
 @require_http_methods(["GET", "POST"])
 def results_grid(request: HttpRequest, code: str) -> HttpResponse:

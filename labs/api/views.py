@@ -274,6 +274,8 @@ class SubmissionCollection(ApiView, ValuesListView):
     rendering = ValuesRendering(s.SubmissionSerializer, annotations={"n_results": "n_results"})
     filterset_class = SubmissionFilter
     parser_classes = [JSONParser]
+    # the rows go through the importer, which names row and column of a control character
+    validates_control_characters = ("results",)
 
     def get_queryset(self) -> QuerySet[Any]:
         if getattr(self, "swagger_fake_view", False):

@@ -335,3 +335,27 @@ def test_web_grid_nul_in_a_note_is_a_form_error(client, web_staff):
     assert "Some entries are not valid; see the marked rows." in body
     assert 'id="id_r0-note-error"' in body and "Null characters are not allowed." in body
     assert not Submission.objects.exists()
+
+
+def test_web_grid_nul_posted_as_a_browser_posts_is_a_form_error(client, web_staff):
+    """Browsers post the grid urlencoded (the test client's default is multipart): the
+    request-level check lets the grid's own errors speak, next to the input."""
+    from urllib.parse import urlencode
+
+    data = {"action": "draft", "r0-sensitivity": "420", "r0-expanded_uncertainty": "8"}
+    data["r0-note"] = "bad\x00note"
+    response = client.post(
+        reverse("labs:grid", args=["CMP-H"]),
+        urlencode(data),
+        content_type="application/x-www-form-urlencoded",
+    )
+    assert response.status_code == 200
+    assert 'id="id_r0-note-error"' in visible(response)
+    assert not Submission.objects.exists()
+    # a form view that does not check its fields itself still answers 400
+    login = client.post(
+        reverse("login"),
+        urlencode({"username": "a\x00b", "password": "x"}),
+        content_type="application/x-www-form-urlencoded",
+    )
+    assert login.status_code == 400

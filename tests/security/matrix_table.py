@@ -42,6 +42,8 @@ PK = {
     "coordinator/<slug:code>/analysis/runs/<int:pk>/": "run",
     "coordinator/<slug:code>/analysis/runs/<int:pk>/progress/": "run",
     "api/v1/analysis-runs/<int:pk>/": "run",
+    "api/v1/analysis-runs/<int:pk>/cancel/": "run",
+    "coordinator/<slug:code>/analysis/runs/<int:pk>/cancel/": "run",
     # the world holds no raw record: any pk is someone else's (or nobody's) -> 404;
     # tests/labs/test_raw_data*.py check a real record persona by persona
     "lab/comparisons/<slug:code>/raw-data/<int:pk>/": "result",
@@ -179,6 +181,11 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    # the world's run has ended: its coordinator is sent back to the run page with a note
+    "coordinator/<slug:code>/analysis/runs/<int:pk>/cancel/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 302 404 302 302 302",
+    ),
     "coordinator/<slug:code>/publish/": Row(
         get="302 405 405 405 405 405 302 302 405",
         post="302 404 404 404 302 404 302 302 302",
@@ -301,6 +308,11 @@ TABLE: dict[str, Row] = {
     "api/v1/analysis-runs/<int:pk>/": Row(
         get="401 404 404 404 200 404 404 401 200",
         post="401 405 405 405 405 405 405 401 405",
+    ),
+    # the world's run has ended: 409 for its coordinators, 404 for everyone else
+    "api/v1/analysis-runs/<int:pk>/cancel/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 404 404 404 409 404 404 401 409",
     ),
     # participants: 409 until published
     "api/v1/comparisons/<slug:code>/scores/": Row(

@@ -100,15 +100,29 @@ def test_tab_and_line_breaks_in_a_query_are_not_refused(world):
 def test_a_nul_in_a_json_string_is_400_naming_its_key_path(api_world):
     key_a = api_world.client("key_a")
     before = (Submission.objects.count(), Result.objects.count())
-    data = rows()
-    data[1]["note"] = "a\x00b"
-    errors = api_error(key_a.post(SUBMIT, {"results": data}, format="json"), "results[1].note")
+    body = {"results": rows(), "submit": "a\x00b", "extra": {"deep": ["ok", "\x07"]}}
+    errors = api_error(key_a.post(SUBMIT, body, format="json"), "submit", "extra.deep[1]")
     assert MESSAGE in errors[0]["message"]
-    data[1]["note"], data[2]["unit"] = "ok", "\x07"
-    api_error(key_a.post(SUBMIT, {"results": data}, format="json"), "results[2].unit")
-    data[2]["unit"], data[0]["n\x00te"] = "mV/g", "x"
-    errors = api_error(key_a.post(SUBMIT, {"results": data}, format="json"), "results[0]")
+    body = {"results": rows(), "n\x00te": "x"}
+    errors = api_error(key_a.post(SUBMIT, body, format="json"), None)
     assert errors[0]["message"].startswith("The key 'n\\x00te' contains the control character")
+    assert (Submission.objects.count(), Result.objects.count()) == before
+
+
+def test_a_nul_in_a_results_row_is_400_naming_row_and_column(api_world):
+    """The rows go through the importer, which names row and column as for any bad cell."""
+    key_a = api_world.client("key_a")
+    before = (Submission.objects.count(), Result.objects.count())
+    data = rows()
+    data[1]["note"], data[2]["unit"] = "a\x00b", "\x07"
+    response = key_a.post(SUBMIT, {"results": data}, format="json")
+    assert response.status_code == 400, response.content
+    errors = response.json()["errors"]
+    assert [(e["row"], e["field"]) for e in errors] == [(2, "note"), (3, "unit")]
+    assert errors[0]["message"].startswith("contains the control character U+0000 at position 2")
+    data[1]["note"], data[2]["unit"], data[0]["n\x00te"] = "ok", "mV/g", "x"
+    response = key_a.post(SUBMIT, {"results": data}, format="json")
+    assert response.status_code == 400, response.content
     assert (Submission.objects.count(), Result.objects.count()) == before
 
 
