@@ -7,6 +7,13 @@ lost with its worker: the sweep run by Celery beat (``analysis.tasks.jobs_sweep_
 re-queues it, and a new task may take over its claim.  The threshold is at least three
 heartbeats, so a live task is never taken over.
 
+A heartbeat is a promise that the task is alive *and will end*, so it also stops (and the
+job becomes stale) when either no longer holds: once the task has outlived the hard time
+limit (``CELERY_TASK_TIME_LIMIT``; the solo pool does not enforce it), or once the worker's
+main process has gone (a prefork child orphaned by a SIGKILL of its parent has nobody left
+to enforce the limit or to acknowledge its message). A task that goes on after its
+heartbeat stopped stores nothing: the sweep's new claim has replaced its token.
+
 Heartbeats are written on PostgreSQL only: the embedded quick start (SQLite) runs tasks
 eagerly in the web process, where no worker can be lost, and SQLite would serialise the
 heartbeat's writes with the task's own.
@@ -17,7 +24,9 @@ from __future__ import annotations
 import contextlib
 import datetime as dt
 import logging
+import os
 import threading
+import time
 from collections.abc import Callable, Iterator
 
 from django.conf import settings
@@ -45,10 +54,15 @@ def heartbeat(beat: Callable[[], object], what: str = "job") -> Iterator[None]:
         yield
         return
     stop = threading.Event()
+    parent = os.getppid()
+    deadline = time.monotonic() + float(settings.CELERY_TASK_TIME_LIMIT)
 
     def loop() -> None:
         try:
             while not stop.wait(every):
+                if os.getppid() != parent or time.monotonic() > deadline:
+                    log.warning("heartbeat of %s stopped: worker gone or time limit passed", what)
+                    return
                 try:
                     beat()
                 except Exception:  # a lost database connection: the next beat tries again
