@@ -67,3 +67,17 @@ def point(device):
     from tests.factories import MeasurementPointFactory
 
     return MeasurementPointFactory(device=device)
+
+
+@pytest.fixture
+def needs_postgres():
+    """Tests of row locks between connections, heartbeats and NUL storage need PostgreSQL
+    (CI sets it): skipped loudly without it, a failure under ``REQUIRE_SERVICES=1``."""
+    from django.db import connection
+
+    if connection.vendor == "postgresql":
+        return
+    message = f"POSTGRESQL TEST NOT RUN: the database is {connection.vendor}, not PostgreSQL"
+    if os.environ.get("REQUIRE_SERVICES") == "1":
+        pytest.fail(message)
+    pytest.skip(message)

@@ -9,7 +9,6 @@ import threading
 import time
 
 import pytest
-from django.db import connection
 
 from proficiency import jobs
 
@@ -17,9 +16,8 @@ pytestmark = pytest.mark.django_db(transaction=True)
 
 
 @pytest.fixture(autouse=True)
-def _postgresql_only():
-    if connection.vendor != "postgresql":
-        pytest.skip("heartbeats are written on PostgreSQL only (jobs.heartbeat)")
+def _postgresql_only(needs_postgres):
+    """Heartbeats are written on PostgreSQL only (jobs.heartbeat)."""
 
 
 def _beats_during(seconds: float) -> int:

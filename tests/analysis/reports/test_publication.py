@@ -2,12 +2,11 @@
 and issues final ones, idempotently; a preliminary issue racing the publication never ends
 up current; participants never read a preliminary report."""
 
-import os
 import threading
 
 import pytest
 from django.contrib.auth import get_user_model
-from django.db import connection, connections
+from django.db import connections
 from rest_framework.test import APIClient
 
 from analysis.models import Report
@@ -40,17 +39,6 @@ def current(comparison):
 def first_page(report):
     with report.file.open("rb") as f:
         return pdf_text(f.read())[0]
-
-
-@pytest.fixture
-def needs_postgres():
-    """A real race needs row locks between connections: PostgreSQL (CI sets it)."""
-    if connection.vendor == "postgresql":
-        return
-    message = f"RACE TEST NOT RUN: the database is {connection.vendor}, not PostgreSQL"
-    if os.environ.get("REQUIRE_SERVICES") == "1":
-        pytest.fail(message)
-    pytest.skip(message)
 
 
 def test_publication_supersedes_preliminary_reports_with_final_ones(analysed):

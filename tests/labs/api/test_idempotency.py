@@ -2,12 +2,11 @@
 sent again shortly after, and two identical requests at the same time."""
 
 import datetime as dt
-import os
 import threading
 
 import pytest
 from django.core.files.uploadedfile import SimpleUploadedFile
-from django.db import connection, connections
+from django.db import connections
 from django.utils import timezone
 
 from labs.models import Submission, SubmissionKey
@@ -174,16 +173,6 @@ def test_the_web_path_stores_identical_results_once(world):
     ]  # fmt: skip
     assert drafts[0] == drafts[1]
     assert versions(world) == [(1, "submitted"), (2, "submitted"), (3, "draft")]
-
-
-@pytest.fixture
-def needs_postgres():
-    if connection.vendor == "postgresql":
-        return
-    message = f"RACE TEST NOT RUN: the database is {connection.vendor}, not PostgreSQL"
-    if os.environ.get("REQUIRE_SERVICES") == "1":
-        pytest.fail(message)
-    pytest.skip(message)
 
 
 @pytest.mark.django_db(transaction=True)
