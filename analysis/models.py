@@ -179,6 +179,16 @@ class Score(models.Model):
     flag = models.CharField(max_length=12, help_text="En flag (the primary score)")
     z_flag = models.CharField(max_length=12, blank=True, help_text="z or z′ flag, if σ_pt set")
     correlation_applied = models.BooleanField(default=False)
+    correlation_failed = models.BooleanField(
+        default=False,
+        help_text="the result is inside the assigned value but u²(x) − u²(x_pt) ≤ 0 (a sole "
+        "contributor): ζ and En use the uncorrected sum",
+    )
+    in_assigned_value = models.BooleanField(
+        null=True,
+        help_text="the result entered the assigned value (null: the method uses no result, "
+        "e.g. a nominal value)",
+    )
 
     class Meta:
         ordering = ["run", "result"]

@@ -17,7 +17,7 @@ from labs.importers import write_table
 SCORE_COLUMNS = [
     "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
     "expanded_uncertainty", "x_pt", "u_x_pt", "method", "d", "d_percent", "en", "zeta", "z",
-    "z_prime", "flag", "z_flag", "correlation_applied",
+    "z_prime", "flag", "z_flag", "correlation_applied", "correlation_failed", "in_assigned_value",
 ]  # fmt: skip
 MATRIX_COLUMNS = ["factor", "group", "level_i", "level_j", "en", "compatible"]
 

@@ -47,6 +47,7 @@ def score_columns(run_id: int, loaded: LoadedRound, a: Analysis) -> list[Column]
     """The score rows as columns; z, z′ are NULL and z_flag empty where σ_pt is not set."""
     s, n = a.scores, loaded.result_id.size
     no_sigma = ~np.isfinite(a.sigma_pt)[loaded.groups.index]
+    included, applies = a.in_assigned_value
     return [
         Column("run_id", "i8", np.full(n, run_id, dtype=np.int64)),
         Column("result_id", "i8", loaded.result_id),
@@ -59,6 +60,8 @@ def score_columns(run_id: int, loaded: LoadedRound, a: Analysis) -> list[Column]
         Column("flag", "text", _FLAGS[s.en_flag]),
         Column("z_flag", "text", np.where(no_sigma, b"", _FLAGS[s.performance_flag])),
         Column("correlation_applied", "bool", np.asarray(s.correlation_applied, dtype=bool)),
+        Column("correlation_failed", "bool", np.asarray(s.correlation_failed, dtype=bool)),
+        Column("in_assigned_value", "bool", included, null=~applies),
     ]
 
 

@@ -168,6 +168,29 @@ class Analysis:
     scores: Scores
     compatibility: list[CompatibilityMatrix]
 
+    @property
+    def in_assigned_value(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per result: whether it entered its point's assigned value, and whether the
+        question applies (it does not where the method uses no result: a nominal value)."""
+        return inclusion(self.assigned, self.groups)
+
+
+# Methods whose assigned value is made of no participant's result.
+_NO_RESULTS = frozenset({"nominal"})
+
+
+def inclusion(values: AssignedValues, groups: Groups) -> tuple[np.ndarray, np.ndarray]:
+    """``(included, applies)`` per result: ``included`` as the method reports it (the
+    largest consistent subset, the reference laboratory; every result for the robust
+    estimators, which weight but never drop a result), ``applies`` false where the
+    point's method takes no result at all."""
+    if values.method == "mixed":
+        methods = np.asarray(values.diagnostics["method"])
+        applies = ~np.isin(methods, list(_NO_RESULTS))[groups.index]
+    else:
+        applies = np.full(groups.size, values.method not in _NO_RESULTS)
+    return values.included & applies, applies
+
 
 def analyse(
     table: ResultTable,
@@ -419,6 +442,7 @@ def assigned_records(analysis: Analysis) -> list[dict[str, Any]]:
 def score_records(analysis: Analysis) -> list[dict[str, Any]]:
     t, s = analysis.table, analysis.scores
     has_sigma = np.isfinite(analysis.sigma_pt)[analysis.groups.index]
+    included, applies = analysis.in_assigned_value
     out = []
     for i in range(t.value.size):
         rec: dict[str, Any] = {
@@ -441,6 +465,8 @@ def score_records(analysis: Analysis) -> list[dict[str, Any]]:
             rec["z_flag"] = FLAG_LABELS[s.performance_flag[i]]
         rec["flag"] = FLAG_LABELS[s.en_flag[i]]
         rec["correlation_applied"] = bool(s.correlation_applied[i])
+        rec["correlation_failed"] = bool(s.correlation_failed[i])
+        rec["in_assigned_value"] = bool(included[i]) if applies[i] else None
         out.append(rec)
     return out
 
