@@ -140,6 +140,10 @@ class AssignedValue(models.Model):
     standard_uncertainty = models.FloatField()
     method = models.CharField(max_length=40)
     sigma_pt = models.FloatField(null=True, blank=True)
+    coverage_factor = models.FloatField(
+        default=2.0,
+        help_text="k of U(x_pt) = k·u(x_pt): 2, or the reference laboratory's own k",
+    )
     diagnostics = models.JSONField(default=dict, blank=True)
 
     class Meta:
@@ -150,6 +154,11 @@ class AssignedValue(models.Model):
 
     def __str__(self) -> str:
         return f"{self.measurement_point}: {self.value:g} (run {self.run_id})"
+
+    @property
+    def expanded_uncertainty(self) -> float:
+        """U(x_pt) = k·u(x_pt)."""
+        return self.coverage_factor * self.standard_uncertainty
 
 
 class Score(models.Model):

@@ -18,6 +18,7 @@ SCORE_COLUMNS = [
     "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
     "expanded_uncertainty", "x_pt", "u_x_pt", "method", "d", "d_percent", "en", "zeta", "z",
     "z_prime", "flag", "z_flag", "correlation_applied", "correlation_failed", "in_assigned_value",
+    "exhaustive",
 ]  # fmt: skip
 MATRIX_COLUMNS = ["factor", "group", "level_i", "level_j", "en", "compatible"]
 
@@ -39,8 +40,9 @@ def render_csv(doc: dict[str, list[dict[str, Any]]]) -> str:
     for s in doc["scores"]:
         a = by_point[_point(s)]
         rows.append(
-            s | {"x_pt": a["value"], "u_x_pt": a["standard_uncertainty"], "method": a["method"]}
-        )
+            s | {"x_pt": a["value"], "u_x_pt": a["standard_uncertainty"], "method": a["method"],
+                 "exhaustive": a.get("exhaustive")}
+        )  # fmt: skip
     out = write_table(rows, columns=SCORE_COLUMNS, bom=False).decode()
     pairs = [
         {
@@ -104,8 +106,25 @@ def _is_number(v: Any) -> bool:
     return isinstance(v, int | float) and not isinstance(v, bool)
 
 
+def approximate_points(analysis: Analysis) -> int:
+    """Points whose largest consistent subset is the sequential approximation."""
+    exhaustive = analysis.assigned.diagnostics.get("exhaustive")
+    return 0 if exhaustive is None else sum(1 for e in exhaustive.tolist() if e is False)
+
+
+def approximate_warning(n: int) -> str:
+    """What to say about ``n`` points whose subset is not the exact one."""
+    return (
+        f"warning: {n} measurement point(s) have too many results for the exact largest "
+        "consistent subset; their subset is the sequential approximation and can be smaller "
+        "than the largest (exhaustive: false)"
+    )
+
+
 def render_table(doc: dict[str, list[dict[str, Any]]]) -> str:
     parts = ["ASSIGNED VALUES"]
+    if n := sum(1 for a in doc["assigned_values"] if a.get("exhaustive") is False):
+        parts.append(approximate_warning(n).capitalize())
     parts.append(_table(
         ["device", "axis", "f/Hz", "bench", "direction", "x_pt", "u(x_pt)", "n", "method"],
         [[a["device"], a["axis"], f"{a['frequency_hz']:g}", a["bench"], a["direction"], a["value"],

@@ -16,7 +16,7 @@ from analysis.core.compatibility import CompatibilityMatrix as CoreMatrix
 from analysis.core.pooled import Moments
 from analysis.core.scores import FLAG_LABELS
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
-from analysis.pipeline import Analysis, json_value, matrix_record, point_method_of
+from analysis.pipeline import Analysis, excluded_labs, json_value, matrix_record, point_method_of
 from analysis.selectors import LoadedRound
 
 BATCH = 5000
@@ -29,6 +29,8 @@ def assigned_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[As
     mixes, so a point's stored diagnostics never depend on how the round was chunked."""
     v = a.assigned
     diag = {k: arr for k, arr in v.diagnostics.items() if not k.startswith("_") and k != "method"}
+    diag["excluded"] = np.array([*excluded_labs(a), None], dtype=object)[:-1]
+    k_pt = v.coverage_factors
     return [
         AssignedValue(
             run=run,
@@ -37,6 +39,7 @@ def assigned_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[As
             standard_uncertainty=float(v.standard_uncertainty[g]),
             method=point_method_of(v, g),
             sigma_pt=json_value(float(a.sigma_pt[g])),
+            coverage_factor=float(k_pt[g]),
             diagnostics={k: x for k, arr in diag.items() if (x := json_value(arr[g])) is not None},
         )
         for g, pid in enumerate(loaded.point_ids)

@@ -231,6 +231,7 @@ def analyse_grouped(
         groups,
         values.value,
         values.standard_uncertainty,
+        U_pt=values.expanded_uncertainty,
         sigma_pt=sigma,
         contributes=contributes,
         en_limit=en_limit,
@@ -265,6 +266,7 @@ def assigned_values_mixed(
         return assigned_values(table, groups, points, specs[0])
     value = np.empty(groups.n_groups)
     u_pt = np.empty(groups.n_groups)
+    k_pt = np.empty(groups.n_groups)
     included = np.zeros(groups.size, dtype=bool)
     method = np.empty(groups.n_groups, dtype=object)
     diagnostics: dict[str, np.ndarray] = {}
@@ -274,12 +276,13 @@ def assigned_values_mixed(
         sub = Groups.from_index(np.searchsorted(sel, groups.index[rows]), sel.size)
         part = assigned_values(take_rows(table, rows), sub, [points[g] for g in sel], spec)
         value[sel], u_pt[sel], included[rows] = part.value, part.standard_uncertainty, part.included
+        k_pt[sel] = part.coverage_factors
         method[sel] = [point_method_of(part, g) for g in range(sel.size)]
         for key, arr in part.diagnostics.items():
             diagnostics.setdefault(key, np.full(groups.n_groups, np.nan, dtype=object))[sel] = arr
     diagnostics["method"] = method
     diagnostics["_group_of_result"] = groups.index
-    return AssignedValues(value, u_pt, "mixed", included, diagnostics)
+    return AssignedValues(value, u_pt, "mixed", included, diagnostics, coverage_factor=k_pt)
 
 
 def take_rows(table: ResultTable, rows: np.ndarray) -> ResultTable:
@@ -302,7 +305,7 @@ def assigned_values(
             raise CoreInputError(
                 f"reference laboratory {spec.reference_lab!r} is not in the table (labs: {labs})"
             )
-        return _reference(x, u, groups, points, is_ref)
+        return _reference(table, groups, points, is_ref)
     if spec.method == "nominal":
         assert spec.nominal is not None and spec.tolerance is not None
         return av.nominal_value(
@@ -324,8 +327,9 @@ def assigned_values(
 
 
 def _reference(
-    x: FloatArray, u: FloatArray, groups: Groups, points: list[tuple[Any, ...]], is_ref: np.ndarray
+    table: ResultTable, groups: Groups, points: list[tuple[Any, ...]], is_ref: np.ndarray
 ) -> AssignedValues:
+    """The reference laboratory's results, U(x_pt) its reported U (its own k)."""
     missing = np.flatnonzero(groups.sum(is_ref) == 0)
     if missing.size:
         names = "; ".join(_point_label(points[g]) for g in missing[:10])
@@ -333,7 +337,9 @@ def _reference(
             f"the reference laboratory has no result for {missing.size} measurement point(s): "
             f"{names}"
         )
-    return av.reference_value(x, u, groups, is_ref)
+    return av.reference_value(
+        table.value, table.standard_uncertainty, groups, is_ref, k=table.coverage_factor
+    )
 
 
 def _weighted_mean_or_subset(x: FloatArray, u: FloatArray, groups: Groups) -> AssignedValues:
@@ -417,14 +423,35 @@ def to_json(analysis: Analysis) -> dict[str, list[dict[str, Any]]]:
     }
 
 
+def excluded_labs(analysis: Analysis) -> list[list[str] | None]:
+    """Per point: the laboratories (codes, sorted) whose results the method left out of the
+    assigned value (the results outside the largest consistent subset), or None where
+    the method does not select results (a reference, a nominal value)."""
+    a, groups = analysis.assigned, analysis.groups
+    if "n_excluded" not in a.diagnostics:
+        return [None] * groups.n_groups
+    selects = np.asarray(
+        [not (isinstance(n, float) and math.isnan(n)) for n in a.diagnostics["n_excluded"]]
+    )
+    out: list[list[str] | None] = [[] if sel else None for sel in selects]
+    left_out = np.flatnonzero(~a.included & selects[groups.index])
+    for i in left_out[np.lexsort((analysis.table.lab[left_out], groups.index[left_out]))]:
+        out[groups.index[i]].append(str(analysis.table.lab[i]))  # type: ignore[union-attr]
+    return out
+
+
 def assigned_records(analysis: Analysis) -> list[dict[str, Any]]:
     a = analysis.assigned
+    big_u, k_pt = a.expanded_uncertainty, a.coverage_factors
+    excluded = excluded_labs(analysis)
     out = []
     for g, point in enumerate(analysis.points):
         rec: dict[str, Any] = dict(zip(POINT_KEYS, point, strict=True))
         rec |= {
             "value": json_value(a.value[g]),
             "standard_uncertainty": json_value(a.standard_uncertainty[g]),
+            "expanded_uncertainty": json_value(big_u[g]),
+            "coverage_factor": json_value(k_pt[g]),
             "method": point_method(analysis, g),
             "n": int(analysis.groups.counts()[g]),
         }
@@ -435,6 +462,8 @@ def assigned_records(analysis: Analysis) -> list[dict[str, Any]]:
             for k, v in a.diagnostics.items()
             if np.ndim(v) == 1 and not k.startswith("_") and k != "method"
         }
+        if excluded[g] is not None:
+            rec["excluded"] = excluded[g]
         out.append(rec)
     return out
 

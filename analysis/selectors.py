@@ -9,6 +9,7 @@ import numpy as np
 from django.db.models import Count, QuerySet
 
 from analysis.bulk import read_columns
+from analysis.core.assigned import EXACT_MAX  # noqa: F401  (re-exported for the results page)
 from analysis.core.compatibility import compatibility_matrices
 from analysis.core.groups import Groups
 from analysis.models import AnalysisRun, CompatibilityMatrix, Score
@@ -210,6 +211,12 @@ def run_scores(run: AnalysisRun, filters: dict[str, str]) -> QuerySet[Score]:
         "result__measurement_point__frequency_hz",
         "result__submission__participant__code",
     )
+
+
+def approximate_subsets(run: AnalysisRun) -> int:
+    """Points of ``run`` whose largest consistent subset is the sequential approximation
+    (too many results for the exact search: ``analysis.core.assigned.EXACT_MAX``)."""
+    return run.assigned_values.filter(diagnostics__exhaustive=False).count()
 
 
 def run_matrices(

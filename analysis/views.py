@@ -24,7 +24,14 @@ from django.views.decorators.http import require_GET, require_POST
 from analysis import charts
 from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
 from analysis.models import AnalysisRun, AssignedValue, Score
-from analysis.selectors import current_run, lab_matrices, run_matrices, run_scores
+from analysis.selectors import (
+    EXACT_MAX,
+    approximate_subsets,
+    current_run,
+    lab_matrices,
+    run_matrices,
+    run_scores,
+)
 from analysis.services import analysis_run_cancel, analysis_run_start
 from labs.selectors import participant_for_user
 from proficiency.coordinator_views import POINT_ORDER, coordinated
@@ -43,7 +50,8 @@ CONTENT_TYPES = {
 SCORE_COLUMNS = [
     "lab", "device", "axis", "frequency_hz", "bench", "direction", "sensitivity", "unit",
     "expanded_uncertainty", "coverage_factor", "assigned_value", "assigned_standard_uncertainty",
-    "d", "d_percent", "en", "zeta", "z", "z_prime", "flag", "z_flag",
+    "assigned_expanded_uncertainty", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag",
+    "z_flag", "in_assigned_value", "correlation_applied", "correlation_failed",
 ]  # fmt: skip
 
 
@@ -227,6 +235,8 @@ def results(request: HttpRequest, code: str, audience: str) -> HttpResponse:
     context = {
         "assigned": _page(request, _assigned(viewer.run), 100),
         "bench_rows": _bench_rows(viewer.run),
+        "n_approximate": approximate_subsets(viewer.run),
+        "exact_max": EXACT_MAX,
         "may_publish": viewer.is_coordinator and c.status == ComparisonStatus.ANALYSED
         and viewer.run == current_run(c),
     }  # fmt: skip
@@ -256,21 +266,23 @@ def scores(request: HttpRequest, code: str, audience: str) -> HttpResponse:
 
 def _score_records(run: AnalysisRun, filters: dict[str, str]) -> list[dict]:
     assigned = dict(
-        (pid, (v, u)) for pid, v, u in run.assigned_values.values_list(
-            "measurement_point_id", "value", "standard_uncertainty")
+        (pid, (v, u, k * u)) for pid, v, u, k in run.assigned_values.values_list(
+            "measurement_point_id", "value", "standard_uncertainty", "coverage_factor")
     )  # fmt: skip
     records = []
     for s in run_scores(run, filters).iterator(chunk_size=5000):
         r, p = s.result, s.result.measurement_point
-        x_pt, u_pt = assigned.get(p.pk, (None, None))
+        x_pt, u_pt, big_u_pt = assigned.get(p.pk, (None, None, None))
         records.append({
             "lab": r.submission.participant.code, "device": p.device.name, "axis": p.axis,
             "frequency_hz": p.frequency_hz, "bench": p.bench, "direction": p.direction,
             "sensitivity": r.value, "unit": r.unit, "expanded_uncertainty": r.expanded_uncertainty,
             "coverage_factor": r.coverage_factor, "assigned_value": x_pt,
-            "assigned_standard_uncertainty": u_pt, "d": s.d, "d_percent": s.d_percent,
-            "en": s.en, "zeta": s.zeta, "z": s.z, "z_prime": s.z_prime, "flag": s.flag,
-            "z_flag": s.z_flag,
+            "assigned_standard_uncertainty": u_pt, "assigned_expanded_uncertainty": big_u_pt,
+            "d": s.d, "d_percent": s.d_percent, "en": s.en, "zeta": s.zeta, "z": s.z,
+            "z_prime": s.z_prime, "flag": s.flag, "z_flag": s.z_flag,
+            "in_assigned_value": s.in_assigned_value, "correlation_applied": s.correlation_applied,
+            "correlation_failed": s.correlation_failed,
         })  # fmt: skip
     return records
 
@@ -309,7 +321,7 @@ def _point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str]:
         "point": charts.point_chart(
             labels, [s.result.value for s in found],
             [s.result.expanded_uncertainty for s in found], assigned_value=av.value,
-            assigned_expanded_uncertainty=2 * av.standard_uncertainty, title=title,
+            assigned_expanded_uncertainty=av.expanded_uncertainty, title=title,
             unit=point.device.unit, highlight=viewer.own_code,
         ),
         "en": charts.en_chart(labels, [s.en for s in found], title=f"En · {title}",

@@ -36,7 +36,7 @@ class ScoreSerializer(serializers.ModelSerializer):
         fields = [
             "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
             "expanded_uncertainty", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag",
-            "z_flag", "correlation_applied",
+            "z_flag", "correlation_applied", "correlation_failed", "in_assigned_value",
         ]  # fmt: skip
 
 

@@ -123,12 +123,20 @@ def _check_alpha(alpha: float) -> None:
 
 
 def reference_value(
-    x: ArrayLike, u: ArrayLike, groups: Groups, is_reference: ArrayLike
+    x: ArrayLike,
+    u: ArrayLike,
+    groups: Groups,
+    is_reference: ArrayLike,
+    k: ArrayLike | None = None,
 ) -> AssignedValues:
     """Reference (pilot) laboratory value, ISO 13528:2022 7.5; domain spec §5.1.
 
-    x_pt = the reference result, u(x_pt) = its u.  Every group needs exactly one
-    reference result.  Diagnostics: ``reference_index`` (result index per group).
+    x_pt = the reference result, u(x_pt) = its u, and U(x_pt) its reported U: ``k`` (per
+    result, the coverage factors the laboratories reported) gives the reference's own k
+    (a key-comparison pilot often reports k = 2.4 or so), which the scores of the others
+    then use in En (ISO 13528:2022 9.7, Formula 20, with U(x_pt) as reported).  Without
+    ``k``, k = 2.  Every group needs exactly one reference result.  Diagnostics:
+    ``reference_index`` (result index per group).
     """
     xs, us = _results(x, u, groups)
     ref = np.asarray(is_reference)
@@ -142,12 +150,19 @@ def reference_value(
     where = np.flatnonzero(ref)
     position = np.empty(groups.n_groups, dtype=np.intp)
     position[groups.index[where]] = where
+    coverage = None
+    if k is not None:
+        ks = as_finite("k", k, positive=True)
+        if ks.shape != (groups.size,):
+            raise CoreInputError(f"k must have one entry per result ({groups.size})")
+        coverage = ks[position]
     return AssignedValues(
         value=xs[position],
         standard_uncertainty=us[position],
         method="reference",
         included=ref.copy(),
         diagnostics={"reference_index": position},
+        coverage_factor=coverage,
     )
 
 
@@ -209,18 +224,18 @@ def largest_consistent_subset(
     u: ArrayLike,
     groups: Groups,
     alpha: float = 0.05,
-    exhaustive_max: int = EXHAUSTIVE_MAX,
-    exact_max: int = EXACT_MAX,
+    exhaustive_max: int | None = None,
+    exact_max: int | None = None,
 ) -> AssignedValues:
     """Weighted mean of the largest consistent subset, Cox (2007) Metrologia 44:187.
 
     The subset is the *largest* set of results whose χ² (about its own weighted mean)
     passes the test, ties going to the smallest χ²_obs. It is found exactly:
 
-    * groups of up to ``exhaustive_max`` results: every subset of size N−1, N−2, … is
-      tested until a size has a consistent subset;
-    * groups of up to ``exact_max`` results: the sweep of :func:`_sweep_row`, exact by
-      construction (see there), in O(N³) work;
+    * groups of up to ``exhaustive_max`` results (default :data:`EXHAUSTIVE_MAX`): every
+      subset of size N−1, N−2, … is tested until a size has a consistent subset;
+    * groups of up to ``exact_max`` results (default :data:`EXACT_MAX`): the sweep of
+      :func:`_sweep_row`, exact by construction (see there), in O(N³) work;
     * larger groups: the sequential approach, dropping the result with the largest
       (x_i − y)²/u_i² until consistent. It can end on a smaller subset than the largest,
       so these groups have ``exhaustive = False`` and callers must say so.
@@ -229,6 +244,8 @@ def largest_consistent_subset(
     consistent_all (the full set passed) and exhaustive (the subset is the exact one).
     """
     _check_alpha(alpha)
+    exhaustive_max = EXHAUSTIVE_MAX if exhaustive_max is None else exhaustive_max
+    exact_max = EXACT_MAX if exact_max is None else exact_max
     xs, us = _results(x, u, groups)
     w = 1.0 / us**2
     everyone = np.ones(groups.size, dtype=np.bool_)
@@ -255,7 +272,11 @@ def largest_consistent_subset(
     included = groups.unpad(keep).astype(np.bool_)
     y, u_y, chi2, n = _weighted(xs, w, groups, included)
     diagnostics = _consistency(chi2, n, alpha)
-    diagnostics.update(n_excluded=counts - n, consistent_all=full["consistent"], exhaustive=exact)
+    # a group consistent as a whole is its own largest subset, whatever its size
+    exhaustive = exact | full["consistent"]
+    diagnostics.update(
+        n_excluded=counts - n, consistent_all=full["consistent"], exhaustive=exhaustive
+    )
     return AssignedValues(y, u_y, "largest_consistent_subset", included, diagnostics)
 
 

@@ -142,30 +142,38 @@ def _assigned(
     return xp, up, k_pt * up
 
 
+K_CORRELATED = 2.0
+"""Coverage factor of U(d) for a result inside the assigned value (Cox 2002, §5: the
+corrected u(d) is expanded with k = 2, whatever k the laboratory reported for U)."""
+
+
 def _uncertainty_of_d(
     u: FloatArray, big_u: FloatArray, u_pt: FloatArray, big_u_pt: FloatArray, corr: BoolArray
 ) -> tuple[FloatArray, FloatArray, BoolArray, BoolArray]:
-    """u(d), U(d) without (ISO 13528 Formulae 19, 20) or with the Cox 2002 correction.
+    """u(d) and U(d), one rule for every coverage factor.
 
-    With the correction u²(d) = u²(x) − u²(x_pt) and U²(d) = U²(x) − U²(x_pt).
-    Where that is not positive (the result is the sole contributor, or u(x_pt)
-    carries more than the weighted-mean uncertainty) the correction is invalid:
-    the uncorrected sum is used and the result is reported in
-    ``correlation_failed`` rather than raising, so a whole round is still scored.
+    * A result outside the assigned value (``corr`` false): u²(d) = u² + u²(x_pt) and
+      U²(d) = U² + U²(x_pt), each U as reported with its own k (ISO 13528:2022 9.6, 9.7,
+      Formulae 19 and 20).
+    * A result inside it (weighted mean, largest consistent subset, the reference
+      laboratory itself): x_pt and x are correlated, so u²(d) = u² − u²(x_pt) and
+      U(d) = 2·u(d) (Cox 2002, Metrologia 39:589, §5). The correction is made on
+      *standard* uncertainties: subtracting expanded ones would mix coverage factors
+      (k = 2.13 for U(x) and 2 for U(x_pt)) and can go negative for k = 1 input.
+
+    Where u² − u²(x_pt) is not positive (the result is the sole contributor, or u(x_pt)
+    carries more than the weighted-mean uncertainty) there is nothing to correct with:
+    the result keeps the uncorrected sums and is reported in ``correlation_failed``, so
+    a whole round is still scored and each such result is named.
     """
-    u2, big2 = u * u, big_u * big_u
-    u2_pt, big2_pt = u_pt * u_pt, big_u_pt * big_u_pt
+    u2, u2_pt = u * u, u_pt * u_pt
     if not corr.any():  # the common case (independent x_pt): plain sums
-        return np.sqrt(u2 + u2_pt), np.sqrt(big2 + big2_pt), corr, corr.copy()
-    sign = np.where(corr, -1.0, 1.0)
-    u2_d = u2 + sign * u2_pt
-    big2_d = big2 + sign * big2_pt
-    failed = corr & ((u2_d <= _CORRELATION_RTOL * u2) | (big2_d <= 0))
-    if failed.any():
-        u2_d[failed] = (u2 + u2_pt)[failed]
-        big2_d[failed] = (big2 + big2_pt)[failed]
+        return np.sqrt(u2 + u2_pt), np.hypot(big_u, big_u_pt), corr, corr.copy()
+    u2_corr = u2 - u2_pt
+    failed = corr & (u2_corr <= _CORRELATION_RTOL * u2)
     applied = corr & ~failed
-    u_d, big_d = np.sqrt(u2_d), np.sqrt(big2_d)
+    u_d = np.sqrt(np.where(applied, u2_corr, u2 + u2_pt))
+    big_d = np.where(applied, K_CORRELATED * u_d, np.hypot(big_u, big_u_pt))
     return u_d, big_d, applied, failed
 
 
@@ -189,8 +197,10 @@ def compute_scores(
     ``x``, ``u``, ``U`` (> 0) and ``contributes`` are per result; ``x_pt``,
     ``u_pt`` (≥ 0), ``U_pt`` (default ``k_pt``·u_pt), ``sigma_pt`` and
     ``delta_e`` are per group (scalars broadcast; NaN or None = unknown for
-    σ_pt and δ_E).  ``contributes`` marks results that entered the assigned
-    value: ζ and En then use the Cox 2002 correction (see ``_uncertainty_of_d``).
+    σ_pt and δ_E).  ``U_pt`` is U(x_pt) as its source gives it: a reference laboratory's
+    U with its own k (pass it), 2·u(x_pt) for a consensus.  ``contributes`` marks results
+    that entered the assigned value: ζ and En then use the Cox 2002 correction on standard
+    uncertainties (see ``_uncertainty_of_d``).
     z is used where u(x_pt) ≤ 0.3 σ_pt (9.2.1), else z′ (9.5).  x_pt = 0 raises
     since D% is undefined.
     """

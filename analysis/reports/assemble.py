@@ -57,6 +57,8 @@ _SCORE_FIELDS = (
     "flag",
     "z_flag",
     "correlation_applied",
+    "in_assigned_value",
+    "correlation_failed",
 )
 
 
@@ -223,6 +225,8 @@ _LISTING_FIELDS = (
     "z",
     "z_prime",
     "flag",
+    "in_assigned_value",
+    "correlation_failed",
 )
 
 
@@ -236,7 +240,7 @@ def result_listing(run: AnalysisRun, context: RunContext) -> ResultListing:
     lab_of = {pk: rank[code] for pk, code in ids.items()}
     use_z = context.use_z
     flags: dict[str, int] = {}
-    ints = np.empty((3, n), dtype=np.int32)  # point, lab, flag
+    ints = np.empty((5, n), dtype=np.int32)  # point, lab, flag, inside (1/0/-1), failed
     floats = np.empty((7, n))  # value, U, k, d, en, zeta, z
     filled = 0
     chunk: list[tuple[Any, ...]] = []
@@ -248,6 +252,8 @@ def result_listing(run: AnalysisRun, context: RunContext) -> ResultListing:
         ints[0, filled:end] = [context.index[r[0]] for r in take]
         ints[1, filled:end] = [lab_of[r[1]] for r in take]
         ints[2, filled:end] = [flags.setdefault(r[10], len(flags)) for r in take]
+        ints[3, filled:end] = [-1 if r[11] is None else int(r[11]) for r in take]
+        ints[4, filled:end] = [int(r[12]) for r in take]
         floats[:, filled:end] = np.array(
             [
                 (*r[2:8], np.nan if (z := r[8] if use_z.get(r[0], False) else r[9]) is None else z)
@@ -291,6 +297,8 @@ def result_listing(run: AnalysisRun, context: RunContext) -> ResultListing:
         zeta=zeta,
         z=z,
         flag=ints[2].astype(np.int8 if len(flags) < 128 else np.int32),
+        inside=ints[3].astype(np.int8),
+        failed=ints[4].astype(bool),
     )
 
 
@@ -468,15 +476,16 @@ def _rows(
     rows: Iterable[Sequence[Any]], index: dict[int, int], use_z: dict[int, bool]
 ) -> tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]]:
     results, scores = [], []
-    for pid, lab, x, big_u, k, d, dp, en, zeta, z, zp, flag, zflag, corr in rows:
+    for pid, lab, x, big_u, k, d, dp, en, zeta, z, zp, flag, zflag, corr, inside, failed in rows:
         i = index[pid]
         results.append(ResultRow(i, lab, x, big_u, k))
         z_ok = use_z.get(pid, False)
         scores.append(
             ScoreRow(
-                i, lab, d, dp, en, zeta, z if z_ok else zp, "z" if z_ok else "z′", flag, zflag, corr
+                i, lab, d, dp, en, zeta, z if z_ok else zp, "z" if z_ok else "z′", flag, zflag,
+                corr, inside, failed,
             )
-        )
+        )  # fmt: skip
     results.sort(key=lambda r: (r.point, r.lab))
     scores.sort(key=lambda s: (s.point, s.lab))
     return tuple(results), tuple(scores)
@@ -491,9 +500,22 @@ def method_label(method: str) -> str:
 
 def _assigned(run: AnalysisRun, index: dict[int, int]) -> tuple[AssignedRow, ...]:
     rows = AssignedValue.objects.filter(run=run).values_list(
-        "measurement_point_id", "value", "standard_uncertainty", "method", "sigma_pt"
-    )
-    out = [AssignedRow(index[p], v, u, method_label(m), s) for p, v, u, m, s in rows]
+        "measurement_point_id", "value", "standard_uncertainty", "method", "sigma_pt",
+        "coverage_factor", "diagnostics",
+    )  # fmt: skip
+    out = [
+        AssignedRow(
+            index[p],
+            v,
+            u,
+            method_label(m),
+            s,
+            coverage_factor=k,
+            excluded=None if (codes := d.get("excluded")) is None else tuple(codes),
+            exhaustive=d.get("exhaustive", True) is not False,
+        )
+        for p, v, u, m, s, k, d in rows
+    ]
     return tuple(sorted(out, key=lambda a: a.point))
 
 

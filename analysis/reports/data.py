@@ -67,6 +67,14 @@ class AssignedRow:
     method: str
     sigma_pt: float | None
     notes: str = ""
+    coverage_factor: float = 2.0
+    excluded: tuple[str, ...] | None = None  # codes left out of the consensus (None: n/a)
+    exhaustive: bool = True  # False: the subset is the sequential approximation
+
+    @property
+    def expanded_uncertainty(self) -> float:
+        """U(x_pt) = k·u(x_pt) (k = 2 unless a reference laboratory reported another)."""
+        return self.coverage_factor * self.standard_uncertainty
 
 
 @dataclass(frozen=True)
@@ -84,6 +92,8 @@ class ScoreRow:
     flag: str
     z_flag: str
     correlation_applied: bool
+    in_assigned_value: bool | None = None
+    correlation_failed: bool = False
 
 
 @dataclass(frozen=True)
@@ -158,6 +168,8 @@ class ResultListing:
     zeta: np.ndarray
     z: np.ndarray
     flag: np.ndarray
+    inside: np.ndarray | None = None  # per row: 1 in x_pt, 0 not, -1 not applicable
+    failed: np.ndarray | None = None  # per row: the correlation correction could not be made
 
     def __len__(self) -> int:
         return len(self.point)

@@ -123,7 +123,7 @@ def _point_chart(
     p, a = data.points[index], assigned.get(index)
     if a is None:
         return None
-    key = ("point", index, a.value, a.standard_uncertainty, p.full_label, p.unit)
+    key = ("point", index, a.value, a.expanded_uncertainty, p.full_label, p.unit)
     found = _round_charts(data)
     chart = found.get(key)
     if chart is None:
@@ -135,7 +135,7 @@ def _point_chart(
             rows.values,
             rows.uncertainties,
             x_pt=a.value,
-            u_x_pt_expanded=2 * a.standard_uncertainty,
+            u_x_pt_expanded=a.expanded_uncertainty,
             title=p.full_label,
             unit=p.unit,
         )

@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from html import escape
 
+import numpy as np
 from reportlab.lib.units import mm
 from reportlab.platypus import Flowable, KeepTogether, Paragraph, Spacer, Table, TableStyle
 
@@ -24,8 +25,13 @@ INTERPRETATION = (
     "Interpretation: |En| ≤ {limit:g} means the result agrees with the assigned value within "
     "the stated expanded uncertainties; |En| > {limit:g} (action) means it does not. ζ and z "
     "(or z′) are judged satisfactory at |score| ≤ 2, questionable for 2 < |score| < 3 and "
-    "unsatisfactory at |score| ≥ 3 (ISO 13528:2022 §9). D = x − x_pt."
+    "unsatisfactory at |score| ≥ 3 (ISO 13528:2022 §9). D = x − x_pt. Beside the laboratory "
+    "code, ● marks a result that entered its point's assigned value (its ζ and En then carry "
+    "the correlation correction of Cox 2002) and ○ one that did not; no mark: the assigned "
+    "value uses no result. † after En: the result is the sole contributor to its assigned "
+    "value, so no correction can be made and the uncorrected sum is used."
 )
+INSIDE_MARK = {True: " ●", False: " ○", None: ""}
 
 
 ROW_HEIGHT = 7.5 * 1.2 + 3.0  # leading of the 7.5 pt cell font + top and bottom padding
@@ -240,23 +246,45 @@ def assigned_values(data: ReportData) -> list[Flowable]:
     rows = [["Device", "Point", "x_pt", "u(x_pt)", "U(x_pt)", "σ_pt", "Method"]]
     for a in data.assigned:
         p = data.points[a.point]
+        k = "" if a.coverage_factor == 2.0 else f" (k = {a.coverage_factor:g})"
+        method = a.method if a.exhaustive else f"{a.method} (approximate)"
         rows.append(
             [
                 p.device,
                 p.label,
                 f"{a.value:.6g}",
                 f"{a.standard_uncertainty:.3g}",
-                f"{2 * a.standard_uncertainty:.3g}",
+                f"{a.expanded_uncertainty:.3g}{k}",
                 num(a.sigma_pt, ".3g"),
-                a.method,
+                method,
             ]
         )
-    return [
+    flow: list[Flowable] = [
         para("5 Assigned values", "h1"),
         para(f"<b>Metrological traceability:</b> {escape(data.traceability)}"),
-        para(f"<b>σ_pt:</b> {escape(data.sigma_pt_description)}. U(x_pt) = 2·u(x_pt) (k = 2)."),
-        table(rows, [18 * mm, 44 * mm, 20 * mm, 16 * mm, 20 * mm, 14 * mm, 42 * mm]),
+        para(
+            f"<b>σ_pt:</b> {escape(data.sigma_pt_description)}. U(x_pt) = 2·u(x_pt) (k = 2), "
+            "except a reference laboratory's U, taken as it reported it (its k in brackets)."
+        ),
     ]
+    approximate = [a for a in data.assigned if not a.exhaustive]
+    if approximate:
+        flow.append(para(
+            f"<b>Warning:</b> {len(approximate)} point(s) had too many results for the exact "
+            "largest-consistent-subset search; their subset is the sequential approximation, "
+            "which can be smaller than the largest consistent subset (marked “approximate”)."
+        ))  # fmt: skip
+    flow.append(table(rows, [18 * mm, 44 * mm, 20 * mm, 16 * mm, 20 * mm, 14 * mm, 42 * mm]))
+    left_out = [(data.points[a.point], a.excluded) for a in data.assigned if a.excluded]
+    if left_out:
+        listed = "; ".join(
+            f"{escape(p.device)} {escape(p.label)}: {', '.join(codes)}" for p, codes in left_out
+        )
+        flow.append(para(
+            "Results left out of the largest consistent subset (still scored, without the "
+            f"correlation correction), by participant code: {listed}.", "small",
+        ))  # fmt: skip
+    return flow
 
 
 def results_and_scores(data: ReportData) -> list[Flowable]:
@@ -325,6 +353,8 @@ def _result_table(
                 label, r.lab, r.value, r.expanded_uncertainty, r.coverage_factor,
                 s.d if s else None, s.en if s else None, s.zeta if s else None,
                 s.z if s else None, s.flag if s else "–",
+                inside=s.in_assigned_value if s else None,
+                failed=s.correlation_failed if s else False,
             )
         )  # fmt: skip
         if r.lab == data.own_code:
@@ -340,10 +370,13 @@ RESULT_HEAD = ["Point", "Lab", "Value", "U", "k", "D", "En", "ζ", "z / z′", "
 def result_cells(
     label: str, lab: str, value: float, big_u: float, k: float,
     d: float | None, en: float | None, zeta: float | None, z: float | None, flag: str,
+    *, inside: bool | None = None, failed: bool = False,
 ) -> list[str]:  # fmt: skip
-    """One row of the results table (both the one-table and the page-by-page listing)."""
-    return [label, lab, f"{value:.6g}", f"{big_u:.3g}", f"{k:g}", num(d, "+.4g"),
-            num(en, ".2f"), num(zeta, ".2f"), num(z, ".2f"), flag]  # fmt: skip
+    """One row of the results table (both the one-table and the page-by-page listing);
+    ``inside`` marks the lab code (see INTERPRETATION), ``failed`` puts † after En."""
+    en_text = num(en, ".2f") + ("†" if failed else "")
+    return [label, lab + INSIDE_MARK[inside], f"{value:.6g}", f"{big_u:.3g}", f"{k:g}",
+            num(d, "+.4g"), en_text, num(zeta, ".2f"), num(z, ".2f"), flag]  # fmt: skip
 
 
 RESULT_WIDTHS = [
@@ -402,20 +435,26 @@ class ListingTable(Flowable):
         out = [list(RESULT_HEAD)]
         bad: list[tuple[int, int]] = []
         last = -1
+        size = stop - start
+        inside = s.inside[start:stop] if s.inside is not None else np.full(size, -1)
+        failed = s.failed[start:stop] if s.failed is not None else np.zeros(size, dtype=bool)
         columns = zip(
             *(
                 a[start:stop].tolist()
                 for a in (s.point, s.lab, s.value, s.expanded_uncertainty, s.coverage_factor,
                           s.d, s.en, s.zeta, s.z, s.flag)
             ),
+            inside.tolist(), failed.tolist(),
             strict=True,
         )  # fmt: skip
-        for n, (point, lab, x, big_u, k, d, en, zeta, z, flag) in enumerate(columns, start=1):
+        for n, (point, lab, x, big_u, k, d, en, zeta, z, flag, ins, fail) in enumerate(
+            columns, start=1
+        ):
             label = data.points[point].label if point != last else ""
             no_z = z != z  # NaN: no z
             out.append(
                 result_cells(label, labs[lab], x, big_u, k, d, en, zeta, None if no_z else z,
-                             flags[flag])
+                             flags[flag], inside=None if ins < 0 else bool(ins), failed=fail)
             )  # fmt: skip
             last = point
             if abs(en) > limit:

@@ -9,7 +9,7 @@ from pathlib import Path
 from django.core.management.base import BaseCommand, CommandError
 
 from analysis.core.groups import CoreInputError
-from analysis.offline import render, write_output
+from analysis.offline import approximate_points, approximate_warning, render, write_output
 from analysis.pipeline import FACTORS, AssignedSpec, ResultTable, SigmaPtSpec, analyse
 from labs.importers import ImportErrors, parse_table
 
@@ -68,4 +68,6 @@ class Command(BaseCommand):
             )  # fmt: skip
         except CoreInputError as exc:
             raise CommandError(f"{path} could not be analysed: {exc}", returncode=2) from None
+        if n := approximate_points(result):
+            self.stderr.write(approximate_warning(n))
         write_output(render(result, opts["format"]), opts["output"], self.stdout)

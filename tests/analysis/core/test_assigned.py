@@ -454,3 +454,16 @@ def test_lcs_keeps_small_results_beside_a_huge_one() -> None:
     assert a.diagnostics["chi2_obs"][0] == pytest.approx(0.25**2 / 16 * 2, rel=1e-12)
     b = largest_consistent_subset([1e-30, 420.5, 421.0], [4.0] * 3, g0(3))
     assert b.value[0] == 420.75
+
+
+def test_a_consistent_group_above_the_budget_is_exact_as_it_stands() -> None:
+    """No search is needed when the whole group passes: it is its own largest subset, so
+    ``exhaustive`` is true whatever the budget; only a searched group can be approximate."""
+    x = [10.0, 10.1, 9.9, 10.05, 9.95, 10.0, 30.0]
+    g = Groups.from_index([0] * 6 + [1])  # group 1 is the single 30.0
+    a = largest_consistent_subset(x, [1.0] * 7, g, exhaustive_max=2, exact_max=2)
+    assert a.diagnostics["consistent_all"].tolist() == [True, True]
+    assert a.diagnostics["exhaustive"].tolist() == [True, True]
+    both = Groups.from_index([0] * 7)
+    b = largest_consistent_subset(x, [1.0] * 7, both, exhaustive_max=2, exact_max=2)
+    assert not b.diagnostics["consistent_all"][0] and not b.diagnostics["exhaustive"][0]
