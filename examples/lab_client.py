@@ -6,7 +6,13 @@ template of one comparison, submits a results file (CSV or XLSX) and prints
 every refused row and column. Needs only the standard library and requests.
 
     python examples/lab_client.py --url http://127.0.0.1:8000 --key KEY \\
-        --comparison IMU-2024-DEMO --file results.csv [--draft] [--template out.csv]
+        --comparison IMU-2024-DEMO --file results.csv [--draft] [--template out.csv] \\
+        [--idempotency-key KEY]
+
+Every submission carries an ``Idempotency-Key`` (a new UUID, printed, unless one is
+given): a request that timed out or hit a server error is sent again with the same key,
+and the service answers the version it already stored instead of storing a second one.
+After a crash, run the command again with the printed key to the same effect.
 
 The key is created by the laboratory's manager or with
 ``python manage.py create_api_key --lab "<lab name>"``; it can also be given in the
@@ -18,11 +24,15 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import time
+import uuid
 from pathlib import Path
 
 import requests
 
 TIMEOUT_S = 120
+ATTEMPTS = 3  # a submission is sent at most this often (same Idempotency-Key each time)
+RETRY_STATUSES = {502, 503, 504}  # the proxy or the server was not there: safe to resend
 
 
 class Api:
@@ -46,14 +56,27 @@ class Api:
     def template(self, code: str, fmt: str = "csv") -> bytes:
         return _checked(self.get(f"comparisons/{code}/template.csv", format=fmt)).content
 
-    def upload(self, code: str, path: Path, submit: bool) -> requests.Response:
-        with path.open("rb") as f:
-            return self.session.post(
-                f"{self.base}comparisons/{code}/submissions/upload/",
-                files={"file": (path.name, f)},
-                data={"submit": "true" if submit else "false"},
-                timeout=TIMEOUT_S,
-            )
+    def upload(self, code: str, path: Path, submit: bool, key: str) -> requests.Response:
+        """POST the file; on a timeout, a lost connection or a 502/503/504, send it again
+        with the same ``Idempotency-Key`` (the service then stores it at most once)."""
+        for attempt in range(1, ATTEMPTS + 1):
+            try:
+                with path.open("rb") as f:
+                    response = self.session.post(
+                        f"{self.base}comparisons/{code}/submissions/upload/",
+                        files={"file": (path.name, f)},
+                        data={"submit": "true" if submit else "false"},
+                        headers={"Idempotency-Key": key},
+                        timeout=TIMEOUT_S,
+                    )
+            except (requests.ConnectionError, requests.Timeout):
+                if attempt == ATTEMPTS:
+                    raise
+            else:
+                if response.status_code not in RETRY_STATUSES or attempt == ATTEMPTS:
+                    return response
+            time.sleep(2**attempt)
+        raise AssertionError("unreachable")
 
 
 def _checked(response: requests.Response) -> requests.Response:
@@ -86,6 +109,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--file", type=Path, help="results table to submit (CSV or XLSX)")
     parser.add_argument("--template", type=Path, help="save the results template here")
     parser.add_argument("--draft", action="store_true", help="save as a draft, do not submit")
+    parser.add_argument(
+        "--idempotency-key",
+        help="send the submission with this key (default: a new UUID); the same key again "
+        "answers the version already stored",
+    )
     args = parser.parse_args(argv)
     if not args.key:
         parser.error("give --key or set PT_API_KEY")
@@ -102,7 +130,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"template saved to {args.template}")
     if not args.file:
         return 0
-    response = api.upload(args.comparison, args.file, submit=not args.draft)
+    key = args.idempotency_key or str(uuid.uuid4())
+    print(f"Idempotency-Key: {key}")
+    response = api.upload(args.comparison, args.file, submit=not args.draft, key=key)
     if response.status_code != 201:
         print_error(response)
         return 1

@@ -42,8 +42,37 @@ def test_lab_client_end_to_end(live_server, world, lab_client, tmp_path, capsys)
     good = tmp_path / "good.csv"
     good.write_bytes(as_csv(rows()))
     assert lab_client.main([*base, "--file", str(good)]) == 0
+    out = capsys.readouterr().out
+    assert "stored: L17 version 2, submitted, 4 results" in out
+    key = out.split("Idempotency-Key: ")[1].split()[0]
+    assert len(key) == 36  # a UUID
+    assert Submission.objects.filter(participant=world.part_a).count() == 2
+    # run again with the printed key (after a crash, say): the same version, nothing stored
+    again = [*base, "--file", str(good), "--idempotency-key", key]
+    assert lab_client.main(again) == 0
     assert "stored: L17 version 2, submitted, 4 results" in capsys.readouterr().out
     assert Submission.objects.filter(participant=world.part_a).count() == 2
+
+
+def test_lab_client_sends_again_with_the_same_key_after_a_502(lab_client, tmp_path, monkeypatch):
+    """A 502 from the proxy, then success: two POSTs with one Idempotency-Key."""
+    sent: list[str] = []
+
+    class Answer:
+        def __init__(self, status: int) -> None:
+            self.status_code = status
+
+    def post(url, files, data, headers, timeout):
+        sent.append(headers["Idempotency-Key"])
+        return Answer(502 if len(sent) == 1 else 201)
+
+    api = lab_client.Api("http://127.0.0.1:9", "key")
+    monkeypatch.setattr(api.session, "post", post)
+    monkeypatch.setattr(lab_client.time, "sleep", lambda s: None)
+    path = tmp_path / "r.csv"
+    path.write_bytes(b"x")
+    assert api.upload("IMU-A-01", path, submit=True, key="k-1").status_code == 201
+    assert sent == ["k-1", "k-1"]
 
 
 def test_lab_client_reports_a_revoked_key(live_server, world, lab_client, capsys):
