@@ -75,11 +75,14 @@ logconfig_dict = {
         "json": {"()": "proficiency.logs.JsonFormatter"},
         "plain": {"format": "%(asctime)s %(levelname)s %(name)s %(message)s"},
     },
+    # a client cut at the read timeout: one INFO line, not a traceback
+    "filters": {"client_timeout": {"()": "proficiency.logs.ClientTimeoutFilter"}},
     "handlers": {
         "console": {
             "class": "logging.StreamHandler",
             "formatter": _formatter,
             "stream": "ext://sys.stdout",
+            "filters": ["client_timeout"],
         }
     },
     "loggers": {

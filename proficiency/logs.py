@@ -35,3 +35,18 @@ class JsonFormatter(logging.Formatter):
         if record.exc_info:
             entry["exception"] = self.formatException(record.exc_info)
         return json.dumps(entry, default=str, ensure_ascii=False)
+
+
+class ClientTimeoutFilter(logging.Filter):
+    """gunicorn's gthread worker logs a socket timeout with a full traceback ("Socket error
+    processing request."); for us it is the expected end of a client that fell silent for
+    ``GUNICORN_READ_TIMEOUT`` seconds (``deploy/gunicorn.conf.py``). Such a record becomes
+    one INFO line without the traceback; every other record passes unchanged."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        exc = record.exc_info[1] if record.exc_info else None
+        if isinstance(exc, TimeoutError):
+            record.msg, record.args = "Closed a connection silent past the read timeout", ()
+            record.exc_info = record.exc_text = None
+            record.levelno, record.levelname = logging.INFO, "INFO"
+        return True
