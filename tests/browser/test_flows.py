@@ -222,7 +222,7 @@ def test_coordinator_publishes_and_lab_downloads_pdf(
     # X 5 Hz: equal U = 8, values 419, 420, 431 -> x_pt = 423.333, u = 4 / sqrt 3 = 2.309,
     # Birge ratio sqrt(5.54 / 2) = 1.66.
     first = page.locator("table tbody tr").first
-    for shown in ("423.333", "2.309", "5.54", "1.66"):
+    for shown in ("423.333", "2.309", "4.619", "5.54", "1.66"):  # U(x_pt) = 2·2.309
         expect(first).to_contain_text(shown)
     shots(page, "coordinator-results", publish=True)
     page.get_by_role("link", name="Charts").first.click()
@@ -278,4 +278,14 @@ def test_coordinator_publishes_and_lab_downloads_pdf(
     text = "\n".join(p.extract_text() for p in PdfReader(io.BytesIO(data)).pages)
     assert own.code in text
     assert "Lab Alpha" not in text and "Lab Gamma" not in text
+    assert "● " in text or "●" in text  # the inclusion mark beside the codes
+
+    # the lab's scores page: every result of the round entered the weighted mean (●)
+    lab_page.goto(f"{base}/results/{CODE}/scores/")
+    rows = lab_page.locator("table tbody tr")
+    expect(rows).to_have_count(27)
+    expect(lab_page.locator('span[title="in the assigned value"]')).to_have_count(27)
+    expect(lab_page.get_by_text("the result entered its point's assigned value")).to_be_visible()
+    expect(rows.filter(has_text=own.code).first).to_have_class(re.compile("own-row"))
+    shots(lab_page, "lab-scores-inclusion")
     assert console_errors == []
