@@ -13,6 +13,10 @@ limit (``CELERY_TASK_TIME_LIMIT``; the solo pool does not enforce it), or once t
 main process has gone (a prefork child orphaned by a SIGKILL of its parent has nobody left
 to enforce the limit or to acknowledge its message). A task that goes on after its
 heartbeat stopped stores nothing: the sweep's new claim has replaced its token.
+(On Linux a prefork child does not outlive its parent at all: Celery's prefork pool sets
+``PR_SET_PDEATHSIG`` to SIGKILL in each child, so the kernel ends it with its parent, its
+database connection drops and PostgreSQL rolls back the chunk it was writing — the fault
+test ``test_sigkill_of_a_prefork_main_process...`` checks this.)
 
 Heartbeats are written on PostgreSQL only: the embedded quick start (SQLite) runs tasks
 eagerly in the web process, where no worker can be lost, and SQLite would serialise the

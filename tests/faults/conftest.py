@@ -91,7 +91,7 @@ class Workers:
         self.queue = queue
         self.procs: list[subprocess.Popen] = []
 
-    def start(self, name: str, **env_extra: str) -> subprocess.Popen:
+    def start(self, name: str, pool: str = "solo", **env_extra: str) -> subprocess.Popen:
         from django.db import connection
 
         test_db = DATABASE_URL.rsplit("/", 1)[0] + "/" + connection.settings_dict["NAME"]
@@ -103,7 +103,8 @@ class Workers:
         env |= env_extra
         proc = subprocess.Popen(
             [sys.executable, "-m", "celery", "-A", "tests.faults.worker_app", "worker",
-             "-P", "solo", "-Q", self.queue, "-n", f"{name}-{self.queue}@%h",
+             "-P", pool, *(["-c", "1"] if pool == "prefork" else []), "-Q", self.queue,
+             "-n", f"{name}-{self.queue}@%h",
              "--loglevel=WARNING", "--without-heartbeat", "--without-gossip",
              "--without-mingle"],
             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,

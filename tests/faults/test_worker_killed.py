@@ -59,7 +59,7 @@ def kill_and_recover(workers, marker, env: dict[str, str], hang: str) -> Analysi
         .exclude(result__measurement_point__lt=run_first_point_hung(run, hang))
         .exists()
     )  # the hung transaction was rolled back with the worker
-    time.sleep(max(0.0, float(marker.read_text()) + VISIBILITY + 0.5 - time.time()))
+    time.sleep(max(0.0, float(marker.read_text().split()[0]) + VISIBILITY + 0.5 - time.time()))
     workers.start("w1", **env)
 
     def finished() -> bool:
@@ -160,4 +160,57 @@ def test_sigkill_of_the_worker_main_process_is_recovered_by_the_sweep(
     lost = chunks.get(index=3)
     assert lost.attempts == 2 and lost.claimed_by not in ("", lost_claim)  # the sweep's task
     assert chunks.filter(done=True).count() == 18 == chunks.filter(attempts=1).count() + 1
+    assert_same_numbers_no_duplicates(run, undisturbed)
+
+
+def alive(pid: int) -> bool:
+    """The process exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_sigkill_of_a_prefork_main_process_ends_the_orphan_and_the_sweep_recovers(
+    workers, undisturbed, tmp_path
+):
+    """A prefork worker's main process SIGKILLed while its child hangs inside chunk 3's
+    transaction. An orphan living on would hold the chunk's locks and uncommitted rows,
+    and the chunk re-queued by the sweep would wait on them for as long as it lives;
+    Celery's prefork pool sets PR_SET_PDEATHSIG(SIGKILL) in its children, so the kernel
+    ends the child with its parent and PostgreSQL rolls its transaction back. This test
+    holds that promise (and the recovery after it) against a Celery upgrade."""
+    env = {
+        "ANALYSIS_CHUNK_RESULTS": "50",
+        "CELERY_VISIBILITY_TIMEOUT": "3600",
+        "JOB_HEARTBEAT_SECONDS": str(HEARTBEAT),
+        "JOB_STALE_SECONDS": str(STALE),
+        "JOB_SWEEP_SECONDS": str(SWEEP),
+    }
+    marker, ready = tmp_path / "hung", tmp_path / "ready"
+    doomed = workers.start("w0", pool="prefork", FAULT_HANG_CHUNK="3", FAULT_MARKER=str(marker),
+                           **env)  # fmt: skip
+    demo = Comparison.objects.get(code="IMU-2024-DEMO")
+    run = analysis_run_start(comparison=demo, user=None)
+    wait_until(marker.exists, "the prefork child to hang in chunk 3", workers)
+    child = int(marker.read_text().split()[1])
+    assert child != doomed.pid and alive(child)
+    os.kill(doomed.pid, signal.SIGKILL)  # the main process only: the child is orphaned
+    assert doomed.wait(10) == -signal.SIGKILL
+    wait_until(lambda: not alive(child), "the orphaned child to end itself", timeout=10 * HEARTBEAT)
+
+    workers.start("w1", FAULT_READY=str(ready), **env)
+    workers.start_beat(tmp_path / "beat-schedule", **env)
+    wait_until(ready.exists, "the new worker to be ready", workers)
+    t_ready = float(ready.read_text())
+
+    def finished() -> bool:
+        run.refresh_from_db()
+        return run.status in ("succeeded", "failed")
+
+    wait_until(finished, "the run to finish", workers, timeout=STALE + 30 * SWEEP)
+    assert run.status == "succeeded", run.error
+    assert run.finished_at.timestamp() - t_ready < STALE + 10 * SWEEP
+    assert AnalysisChunk.objects.get(run=run, index=3).attempts == 2
     assert_same_numbers_no_duplicates(run, undisturbed)

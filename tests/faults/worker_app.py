@@ -3,7 +3,8 @@
 With ``FAULT_HANG_CHUNK=i`` the worker hangs inside chunk ``i``'s transaction (``run``:
 inside the single task of a one-chunk run), after its
 assigned values and scores are written and before they commit, and writes the file
-``FAULT_MARKER`` so that the test knows when to SIGKILL it; with ``FAULT_READY`` it
+``FAULT_MARKER`` (the pid of the process that hangs) so that the test knows when to
+SIGKILL it, in the solo pool's process or a prefork child; with ``FAULT_READY`` it
 writes that file when it is ready to consume.  Nothing of this is in
 the project's code: the worker is started with ``-A tests.faults.worker_app``.
 """
@@ -12,7 +13,7 @@ import os
 import time
 from pathlib import Path
 
-from celery.signals import task_prerun, worker_ready
+from celery.signals import task_prerun, worker_process_init, worker_ready
 
 from proficiency.celery import app
 
@@ -28,11 +29,20 @@ def _remember(task=None, args=None, **_: object) -> None:
 
 
 @worker_ready.connect
-def _install_hang(**_: object) -> None:
-    import analysis.services as services
-
+def _ready(**_: object) -> None:
     if ready := os.environ.get("FAULT_READY"):  # tells the test when this worker consumes
         Path(ready).write_text(str(time.time()))
+    _install_hang()  # the solo pool runs tasks in this (the main) process
+
+
+@worker_process_init.connect
+def _in_child(**_: object) -> None:
+    _install_hang()  # a prefork child: forked before worker_ready, so patched here too
+
+
+def _install_hang() -> None:
+    import analysis.services as services
+
     hang = os.environ.get("FAULT_HANG_CHUNK")  # a chunk index, or "run": the single task
     if not hang:
         return
@@ -47,8 +57,10 @@ def _install_hang(**_: object) -> None:
     def write_scores(*args: object, **kwargs: object) -> object:
         out = original(*args, **kwargs)
         if hangs_here():
-            Path(os.environ["FAULT_MARKER"]).write_text(str(time.time()))
+            Path(os.environ["FAULT_MARKER"]).write_text(f"{time.time()} {os.getpid()}")
             time.sleep(600)  # killed by the test long before
         return out
 
-    services.write_scores = write_scores
+    if not getattr(services.write_scores, "hangs", False):
+        write_scores.hangs = True  # type: ignore[attr-defined]
+        services.write_scores = write_scores
