@@ -23,7 +23,7 @@ class AnalysisRun(models.Model):
     ``heartbeat_at`` is the last sign of life of any task working on the run (its claim,
     a heartbeat while it works, a chunk stored): the stale-job sweep
     (``analysis.services.analysis_sweep``) re-queues the work of a run silent for longer
-    than ``ANALYSIS_STALE_SECONDS``.  ``claimed_by`` is the Celery task id of the run task
+    than ``JOB_STALE_SECONDS``.  ``claimed_by`` is the Celery task id of the run task
     holding the run.
     """
 
