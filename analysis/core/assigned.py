@@ -326,17 +326,21 @@ def _sweep_row(x: FloatArray, w: FloatArray, m_lb: int, alpha: float) -> BoolArr
     if mids.size == 0:
         mids = starts
     sizes = n - m_lb + 1  # m = m_lb … n
-    best, at = np.full(sizes, np.inf), np.zeros(sizes)
+    best = np.full(sizes, np.inf)
+    # the ranking that gave each size its best χ², kept as it was (not recomputed): where a
+    # y lies on a crossing (ties in f), another sort could rank the tied results otherwise
+    # and pick a different subset than the one whose χ² was computed
+    ranked = np.zeros((sizes, n), dtype=np.intp)
     for a in range(0, mids.size, step):
-        chi2 = _prefix_chi2(x, w, mids[a : a + step], m_lb)
+        chi2, order = _prefix_chi2(x, w, mids[a : a + step], m_lb)
         arg = np.argmin(chi2, axis=0)
         low = chi2[arg, np.arange(sizes)]
         better = low < best
-        best[better], at[better] = low[better], mids[a + arg[better]]
+        best[better], ranked[better] = low[better], order[arg[better]]
     for m in range(n, m_lb - 1, -1):
         if not np.isfinite(best[m - m_lb]):
             continue
-        chosen = np.argsort(w * (x - at[m - m_lb]) ** 2, kind="stable")[:m]
+        chosen = ranked[m - m_lb, :m]
         xm, wm = x[chosen], w[chosen]
         ym = np.sum(wm * xm) / np.sum(wm)
         if m == 1 or np.sum(wm * (xm - ym) ** 2) <= crit_all[m - 1]:
@@ -363,9 +367,12 @@ def _in_region(y: FloatArray, starts: FloatArray, ends: FloatArray) -> BoolArray
     return (k >= 0) & (y <= ends[np.maximum(k, 0)])
 
 
-def _prefix_chi2(x: FloatArray, w: FloatArray, y: FloatArray, m_lb: int) -> FloatArray:
+def _prefix_chi2(
+    x: FloatArray, w: FloatArray, y: FloatArray, m_lb: int
+) -> tuple[FloatArray, IntArray]:
     """χ² of the m results with the smallest w(x − y)², for each y (rows) and each
-    m = m_lb … n (columns), from prefix sums about y."""
+    m = m_lb … n (columns), from prefix sums about y; and the ranking used, per y (its
+    first m entries are the subset of size m)."""
     n = x.size
     d = x[np.newaxis, :] - y[:, np.newaxis]
     f = w * d * d
@@ -378,7 +385,7 @@ def _prefix_chi2(x: FloatArray, w: FloatArray, y: FloatArray, m_lb: int) -> Floa
     s0 = _cumulative(wh.sum(axis=1), wt)
     s1 = _cumulative((wh * dh).sum(axis=1), wt * dt)
     s2 = _cumulative((wh * dh * dh).sum(axis=1), wt * dt * dt)
-    return np.maximum(s2 - s1 * s1 / s0, 0.0)
+    return np.maximum(s2 - s1 * s1 / s0, 0.0), np.concatenate([head, tail], axis=1)
 
 
 def _cumulative(head: FloatArray, tail: FloatArray) -> FloatArray:

@@ -467,3 +467,15 @@ def test_a_consistent_group_above_the_budget_is_exact_as_it_stands() -> None:
     both = Groups.from_index([0] * 7)
     b = largest_consistent_subset(x, [1.0] * 7, both, exhaustive_max=2, exact_max=2)
     assert not b.diagnostics["consistent_all"][0] and not b.diagnostics["exhaustive"][0]
+
+
+def test_lcs_sweep_on_a_triple_crossing_keeps_the_ranking_it_scored() -> None:
+    """Found by hypothesis: at y = −1 the contributions of results 1, 3 and 4 are equal (a
+    triple crossing, and an evaluation point of the sweep). The size-4 subset scored there
+    was {0, 1, 2, 4} (χ² = 4.65, consistent); re-sorting at the same y ranked the tied
+    results otherwise, gave {0, 1, 2, 3} (inconsistent) and the search failed."""
+    x, u = [0.0, 0.25, -0.25, -2.25, 6.5], [0.5, 0.5, 1.7, 0.5, 3.0]
+    assert brute_force_lcs(x, u) == (0, 1, 2, 4)
+    a = largest_consistent_subset(x, u, g0(5), exhaustive_max=0)
+    np.testing.assert_array_equal(a.included, [True, True, True, False, True])
+    assert a.diagnostics["chi2_obs"][0] == pytest.approx(4.649702232122562, rel=1e-12)
