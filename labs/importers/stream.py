@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import codecs
 import csv
+import io
 import itertools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -143,7 +144,8 @@ def _check(
 
 def _csv_records(head: bytes, stream: BinaryIO, shape: Shape) -> tuple[Records, bool]:
     """Records of a UTF-8 CSV stream; the delimiter is sniffed on the first non-empty line."""
-    lines = _lines(itertools.chain([head + stream.readline()], stream))
+    # The 4 bytes already read may hold whole lines (a file that starts with blank lines).
+    lines = _lines(itertools.chain(io.BytesIO(head + stream.readline()), stream))
     first: list[str] = []
     for line in lines:
         first.append(line)
