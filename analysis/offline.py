@@ -1,18 +1,35 @@
 """Output of the offline command ``pt_compare`` (formats.md §4): table, JSON and CSV.
 
 Numbers are kept at full precision in JSON and CSV; only the terminal table
-rounds them for reading.
+rounds them for reading.  JSON and CSV are written a chunk of results at a time
+(:func:`analysis.pipeline.score_record_chunks`), JSON by orjson: a national round's
+200,000 or 1,000,000 scores never stand in memory as one document.
 """
 
 from __future__ import annotations
 
+import csv
 import io
-import json
-from collections.abc import Sequence
-from typing import Any
+import os
+import re
+import tempfile
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from typing import Any, BinaryIO
 
-from analysis.pipeline import Analysis, to_json
+import numpy as np
+import orjson
+
+from analysis.pipeline import (
+    Analysis,
+    json_value,
+    point_method,
+    score_columns,
+    score_record_chunks,
+    to_json,
+)
 from labs.importers import write_table
+from labs.importers.values import escape_text
 
 SCORE_COLUMNS = [
     "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
@@ -21,30 +38,206 @@ SCORE_COLUMNS = [
     "exhaustive",
 ]  # fmt: skip
 MATRIX_COLUMNS = ["factor", "group", "level_i", "level_j", "en", "compatible"]
+CHUNK = 20_000  # results per chunk of output
+_JSON = orjson.OPT_SERIALIZE_NUMPY  # NaN and inf are written as null
 
 
-def render(analysis: Analysis, fmt: str) -> str:
-    doc = to_json(analysis)
+class Sink:
+    """Where output goes: a binary file, or a text stream (standard output)."""
+
+    def __init__(self, binary: BinaryIO | None = None, text: Any = None) -> None:
+        self.binary, self.text = binary, text
+
+    def write(self, data: bytes | str) -> None:
+        if self.binary is not None:
+            self.binary.write(data.encode() if isinstance(data, str) else data)
+        else:  # Django's OutputWrapper adds a line ending unless told not to
+            text = data.decode() if isinstance(data, bytes) else data
+            if hasattr(self.text, "style_func"):
+                self.text.write(text, ending="")
+            else:
+                self.text.write(text)
+
+
+def write(analysis: Analysis, fmt: str, sink: Sink, *, indent: int | None = None) -> None:
     if fmt == "json":
-        return json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
-    if fmt == "csv":
-        return render_csv(doc)
-    return render_table(doc)
+        for chunk in json_parts(analysis, indent):
+            sink.write(chunk)
+    elif fmt == "csv":
+        for part in csv_parts(analysis):
+            sink.write(part)
+    else:
+        sink.write(render_table(to_json(analysis)))
 
 
-def render_csv(doc: dict[str, list[dict[str, Any]]]) -> str:
+def render(analysis: Analysis, fmt: str, *, indent: int | None = None) -> str:
+    """The whole output as one string (small tables, tests)."""
+    buffer = io.BytesIO()
+    write(analysis, fmt, Sink(binary=buffer), indent=indent)
+    return buffer.getvalue().decode()
+
+
+@contextmanager
+def output_sink(path: str | None, stdout: Any) -> Iterator[Sink]:
+    """Standard output, or ``path`` written under a temporary name and renamed when complete:
+    on an error nothing is left at ``path``."""
+    if not path:
+        yield Sink(text=stdout)
+        return
+    folder = os.path.dirname(os.path.abspath(path))
+    handle, temporary = tempfile.mkstemp(prefix=".pt_compare-", dir=folder)
+    try:
+        with os.fdopen(handle, "wb", buffering=2**20) as f:
+            yield Sink(binary=f)
+        os.chmod(temporary, 0o666 & ~_umask())
+        os.replace(temporary, path)
+    except BaseException:
+        os.unlink(temporary)
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+# --- JSON ------------------------------------------------------------------------------------
+
+
+def json_parts(analysis: Analysis, indent: int | None = None) -> Iterator[bytes]:
+    """The document of formats.md §4 (``to_json``'s keys, in order), the scores a chunk at a
+    time; compact, or indented by ``indent`` spaces as ``json.dumps(indent=...)`` lays it out."""
+    doc = to_json(analysis, scores=False)
+    parts = _json_indented(doc, analysis) if indent is not None else _json_compact(doc, analysis)
+    if indent is None or indent == 2:
+        yield from parts
+        return
+    for part in parts:  # orjson indents by two; strings hold no raw line break
+        yield _INDENT.sub(lambda m: b"\n" + b" " * (len(m.group(1)) // 2 * indent), part)
+
+
+_INDENT = re.compile(rb"\n( *)")
+
+
+def _json_compact(doc: dict[str, Any], analysis: Analysis) -> Iterator[bytes]:
+    yield b"{"
+    for n, (key, value) in enumerate(doc.items()):
+        yield (b"," if n else b"") + orjson.dumps(key) + b":"
+        if key != "scores":
+            yield orjson.dumps(value, option=_JSON)
+            continue
+        yield b"["
+        first = True
+        for chunk in score_record_chunks(analysis, CHUNK):
+            yield (b"" if first else b",") + orjson.dumps(chunk, option=_JSON)[1:-1]
+            first = False
+        yield b"]"
+    yield b"}\n"
+
+
+def _json_indented(doc: dict[str, Any], analysis: Analysis) -> Iterator[bytes]:
+    indented = _JSON | orjson.OPT_INDENT_2
+    yield b"{"
+    for n, (key, value) in enumerate(doc.items()):
+        yield (b",\n  " if n else b"\n  ") + orjson.dumps(key) + b": "
+        if key != "scores" or not analysis.table.value.size:
+            yield orjson.dumps(value, option=indented).replace(b"\n", b"\n  ")
+            continue
+        yield b"["
+        for i, chunk in enumerate(score_record_chunks(analysis, CHUNK)):
+            body = orjson.dumps(chunk, option=indented)[2:-2]  # without "[\n" and "\n]"
+            yield (b"," if i else b"") + b"\n  " + body.replace(b"\n", b"\n  ")
+        yield b"\n  ]"
+    yield b"\n}\n"
+
+
+# --- CSV -------------------------------------------------------------------------------------
+
+
+def csv_parts(analysis: Analysis) -> Iterator[str]:
     """Scores joined with their point's assigned value, one row per result; the
-    compatibility matrices follow after one blank line in long form (one row per pair)."""
-    by_point = {_point(a): a for a in doc["assigned_values"]}
-    rows = []
-    for s in doc["scores"]:
-        a = by_point[_point(s)]
-        rows.append(
-            s | {"x_pt": a["value"], "u_x_pt": a["standard_uncertainty"], "method": a["method"],
-                 "exhaustive": a.get("exhaustive")}
-        )  # fmt: skip
-    out = write_table(rows, columns=SCORE_COLUMNS, bom=False).decode()
-    pairs = [
+    compatibility matrices follow after one blank line in long form (one row per pair).
+    Cells as :func:`labs.importers.write_table` writes them (full precision, text escaped
+    against formula execution), built a column at a time."""
+    buffer = io.StringIO(newline="")
+    writer = csv.writer(buffer, lineterminator="\r\n")
+    writer.writerow(SCORE_COLUMNS)
+    cells = _score_cells(analysis)
+    n = analysis.table.value.size
+    for start in range(0, n, CHUNK):
+        writer.writerows(zip(*(c[start : start + CHUNK] for c in cells), strict=True))
+        yield buffer.getvalue()
+        buffer.seek(0)
+        buffer.truncate()
+    yield buffer.getvalue()
+    pairs = _matrix_pairs(to_json(analysis, scores=False)["compatibility"])
+    if pairs:
+        yield "\n" + write_table(pairs, columns=MATRIX_COLUMNS, bom=False).decode()
+
+
+def _score_cells(analysis: Analysis) -> list[list[Any]]:
+    """The CSV cells of every score row, as columns in :data:`SCORE_COLUMNS` order."""
+    columns, has_sigma = score_columns(analysis)
+    a, index = analysis.assigned, analysis.groups.index
+    n_points = analysis.groups.n_groups
+    methods = np.array([point_method(analysis, g) for g in range(n_points)])
+    joined = {
+        "x_pt": _finite_or_none(a.value)[index],
+        "u_x_pt": _finite_or_none(a.standard_uncertainty)[index],
+        "method": methods.astype(object)[index],
+        "exhaustive": _point_diagnostic(a.diagnostics.get("exhaustive"), n_points)[index],
+    }
+    cells = []
+    for name in SCORE_COLUMNS:
+        values = joined[name] if name in joined else columns[name]
+        column = _cells(values)
+        if name in ("z", "z_prime", "z_flag") and not has_sigma.all():
+            for i in np.flatnonzero(~has_sigma).tolist():
+                column[i] = ""
+        cells.append(column)
+    return cells
+
+
+def _point_diagnostic(values: np.ndarray | None, n_points: int) -> np.ndarray:
+    """A per-point diagnostic as its assigned-value record has it (None where absent)."""
+    out = np.full(n_points, None, dtype=object)
+    if values is not None:
+        out[:] = [json_value(v) for v in values]
+    return out
+
+
+def _finite_or_none(values: np.ndarray) -> np.ndarray:
+    """As ``json_value``: the assigned value's non-finite numbers are left empty."""
+    out = values.astype(object)
+    out[~np.isfinite(values)] = None
+    return out
+
+
+def _cells(values: np.ndarray) -> list[Any]:
+    """``write_table``'s cell for each value: repr of a float, TRUE/FALSE, escaped text,
+    empty for None."""
+    if values.dtype.kind == "f":
+        return list(map(repr, values.tolist()))
+    if values.dtype.kind == "b":
+        return ["TRUE" if v else "FALSE" for v in values.tolist()]
+    items = values.tolist()
+    text = {v: _cell(v) for v in set(items)}
+    return [text[v] for v in items]
+
+
+def _cell(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return str(value).upper()
+    if isinstance(value, float):
+        return repr(value)
+    return escape_text(str(value))
+
+
+def _matrix_pairs(matrices: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [
         {
             "factor": m["factor"],
             "group": _group_label(m),
@@ -53,14 +246,11 @@ def render_csv(doc: dict[str, list[dict[str, Any]]]) -> str:
             "en": m["en"][i][j],
             "compatible": m["en"][i][j] <= 1.0,
         }
-        for m in doc["compatibility"]
+        for m in matrices
         for i, li in enumerate(m["levels"])
         for j, lj in enumerate(m["levels"])
         if j > i
     ]
-    if pairs:
-        out += "\n" + write_table(pairs, columns=MATRIX_COLUMNS, bom=False).decode()
-    return out
 
 
 def _point(rec: dict[str, Any]) -> tuple[Any, ...]:
