@@ -15,13 +15,17 @@ import re
 import tempfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from itertools import repeat
 from typing import Any, BinaryIO
 
 import numpy as np
 import orjson
 
 from analysis.pipeline import (
+    POINT_KEYS,
+    SIGMA_KEYS,
     Analysis,
+    compatibility_records,
     json_value,
     point_method,
     score_columns,
@@ -128,12 +132,67 @@ def _json_compact(doc: dict[str, Any], analysis: Analysis) -> Iterator[bytes]:
             yield orjson.dumps(value, option=_JSON)
             continue
         yield b"["
-        first = True
-        for chunk in score_record_chunks(analysis, CHUNK):
-            yield (b"" if first else b",") + orjson.dumps(chunk, option=_JSON)[1:-1]
-            first = False
+        for i, chunk in enumerate(score_json_chunks(analysis, CHUNK)):
+            yield b"," + chunk if i else chunk
         yield b"]"
     yield b"}\n"
+
+
+def score_json_chunks(analysis: Analysis, size: int) -> Iterator[bytes]:
+    """The score records as compact JSON, ``size`` records at a time, comma-separated: the
+    bytes of ``orjson.dumps(records)[1:-1]`` without a dictionary per result.
+
+    Each column's values are written by orjson a chunk at a time (a float array in one
+    call; text once per distinct value), the point's keys once per measurement point (the
+    results were grouped by exactly those values), then the records are joined from the
+    pieces."""
+    columns, has_sigma = score_columns(analysis)
+    index = analysis.groups.index
+    heads = np.array(
+        [b"{" + b",".join(_pair(k, v) for k, v in zip(POINT_KEYS, p, strict=True))
+         for p in analysis.points],
+        dtype=object,
+    )  # fmt: skip
+    rest = [k for k in columns if k not in POINT_KEYS]
+    prefixes = {k: b"," + orjson.dumps(k) + b":" for k in rest}
+    memo: dict[str, dict[Any, bytes]] = {k: {} for k in rest}
+    for start in range(0, has_sigma.size, size):
+        rows = slice(start, start + size)
+        sigma = has_sigma[rows]
+        parts: list[Any] = [heads[index[rows]].tolist()]
+        for k in rest:
+            if k in SIGMA_KEYS and not sigma.all():
+                if sigma.any():  # the key only in the records whose point has a σ_pt
+                    values = _fragments(columns[k][rows], memo[k])
+                    has = sigma.tolist()
+                    parts.append(
+                        [prefixes[k] + v if h else b"" for v, h in zip(values, has, strict=True)]
+                    )
+                continue
+            parts += [repeat(prefixes[k]), _fragments(columns[k][rows], memo[k])]
+        parts.append(repeat(b"}"))
+        yield b",".join(map(b"".join, zip(*parts, strict=False)))  # repeat() is endless
+
+
+def _pair(key: str, value: Any) -> bytes:
+    return orjson.dumps(key) + b":" + orjson.dumps(value, option=_JSON)
+
+
+_BOOLS = (b"false", b"true")
+
+
+def _fragments(values: np.ndarray, memo: dict[Any, bytes]) -> list[bytes]:
+    """Each value's JSON text. Object columns hold text, booleans and None only (no number
+    that a dictionary would take for a boolean)."""
+    if values.dtype.kind == "f":
+        return orjson.dumps(np.ascontiguousarray(values), option=_JSON)[1:-1].split(b",")
+    if values.dtype.kind == "b":
+        return list(map(_BOOLS.__getitem__, values.tolist()))
+    items = values.tolist()
+    for v in dict.fromkeys(items):
+        if v not in memo:
+            memo[v] = orjson.dumps(v)
+    return list(map(memo.__getitem__, items))
 
 
 def _json_indented(doc: dict[str, Any], analysis: Analysis) -> Iterator[bytes]:
@@ -171,7 +230,7 @@ def csv_parts(analysis: Analysis) -> Iterator[str]:
         buffer.seek(0)
         buffer.truncate()
     yield buffer.getvalue()
-    pairs = _matrix_pairs(to_json(analysis, scores=False)["compatibility"])
+    pairs = _matrix_pairs(compatibility_records(analysis.compatibility))
     if pairs:
         yield "\n" + write_table(pairs, columns=MATRIX_COLUMNS, bom=False).decode()
 

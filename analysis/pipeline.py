@@ -513,12 +513,10 @@ def score_columns(analysis: Analysis) -> tuple[dict[str, np.ndarray], np.ndarray
     return columns, np.isfinite(analysis.sigma_pt)[analysis.groups.index]
 
 
-def score_record_chunks(
-    analysis: Analysis, size: int = 20_000, columns: tuple[dict, np.ndarray] | None = None
-) -> Iterator[list[dict[str, Any]]]:
+def score_record_chunks(analysis: Analysis, size: int = 20_000) -> Iterator[list[dict[str, Any]]]:
     """The score records (formats.md §4), ``size`` at a time, so that a writer holds one
     chunk of dictionaries at once, never a whole round's."""
-    cols, has_sigma = columns or score_columns(analysis)
+    cols, has_sigma = score_columns(analysis)
     without = [k for k in cols if k not in SIGMA_KEYS]
     for start in range(0, has_sigma.size, size):
         rows = slice(start, start + size)

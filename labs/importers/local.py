@@ -37,6 +37,7 @@ from .errors import MAX_LISTED_ERRORS, ImportErrors, RowError
 from .readers import sniff_delimiter
 from .schema import COLUMNS, DEFAULT_COVERAGE_FACTOR, LabColumn, ResultRow
 from .stream import read_chunks
+from .table import _gc_paused
 from .validate import _error_order, check_header
 from .values import MAX_MAGNITUDE, MG_PER_LSB, MIN_MAGNITUDE
 from .values import mg_per_lsb_to_canonical as _mg_per_lsb
@@ -95,13 +96,14 @@ def read_local_table(
     """
     if lab_column != "required":
         raise ValueError("a local table is read with its lab column (lab_column='required')")
-    try:
+    with _gc_paused():  # millions of cells alive at once, none in a cycle
+        try:
+            with open(path, "rb") as stream:
+                return _Plain(stream, lab_column, block_bytes).read()
+        except _NotPlain:
+            pass
         with open(path, "rb") as stream:
-            return _Plain(stream, lab_column, block_bytes).read()
-    except _NotPlain:
-        pass
-    with open(path, "rb") as stream:
-        return _streamed(stream, os.fspath(path), lab_column)
+            return _streamed(stream, os.fspath(path), lab_column)
 
 
 # --- the plain CSV -----------------------------------------------------------------------------
@@ -124,6 +126,11 @@ class _Codes:
         return np.concatenate(self.codes) if self.codes else np.zeros(0, np.int64)
 
 
+#: Text columns of the measurement point (and the unit, which goes with the device): a
+#: round repeats few combinations of them, so each row's combination is looked up once.
+_POINT_TEXT = ("device", "axis", "frequency_hz", "bench", "direction", "unit")
+
+
 class _Plain:
     """The plain-CSV reading; raises :class:`_NotPlain` as soon as the file is anything else."""
 
@@ -133,8 +140,11 @@ class _Plain:
             f: (kind, check, dep) for f, kind, check, dep in field_checks(None, lab_column)
         }
         self.validator = _Validator({}, [], False)  # its per-cell check, on one cell at a time
+        self.memo: dict[tuple[str, object, object], object] = {}
         self.names: list[str] = []
-        self.texts: dict[str, _Codes] = {}
+        self.point_names: list[str] = []
+        self.points = _Codes()  # of the rows' point columns, as tuples
+        self.texts: dict[str, _Codes] = {}  # lab, note
         self.numbers: dict[str, list[np.ndarray]] = {}
         self.relative: list[np.ndarray] = []  # expanded_uncertainty given in %
         self.n_rows = 0
@@ -181,7 +191,8 @@ class _Plain:
             self.names = check_header(cells, lab_column=self.lab_column, row=1)
         except ImportErrors:
             raise _NotPlain from None
-        self.texts = {n: _Codes() for n in self.names if self.checks[n][0] != "number"}
+        self.point_names = [n for n in self.names if n in _POINT_TEXT]
+        self.texts = {n: _Codes() for n in self.names if n in ("lab", "note")}
         self.numbers = {n: [] for n in self.names if self.checks[n][0] == "number"}
 
     def _decoded(self, block: bytes) -> tuple[str, int]:
@@ -199,12 +210,13 @@ class _Plain:
         cells.pop()  # after the last "\n"
         width = len(self.names)
         first_row = 2 + self.n_rows
-        for j, name in enumerate(self.names):
-            column = cells[j::width]
-            if name in self.texts:
-                self.texts[name].add(column)
-            else:
-                self._number_column(name, column, first_row)
+        columns = {name: cells[j::width] for j, name in enumerate(self.names)}
+        del cells
+        self.points.add(list(zip(*(columns[n] for n in self.point_names), strict=True)))
+        for name, codes in self.texts.items():
+            codes.add(columns[name])
+        for name in self.numbers:
+            self._number_column(name, columns[name], first_row)
         self.n_rows += n_lines
 
     def _number_column(self, name: str, cells: list[str], first_row: int) -> None:
@@ -231,36 +243,39 @@ class _Plain:
     def _checked(
         self, name: str, raws: Sequence[object], depends: Sequence[object] | None = None
     ) -> list[object]:
-        """Each distinct cell (with its dependency's value) through the importer's check."""
-        check = self.checks[name][1]
+        """Each cell (with its dependency's value) through the importer's check, once."""
+        check, memo = self.checks[name][1], self.memo
         out = []
         for i, raw in enumerate(raws):
-            compute = check if depends is None else _bound(check, depends[i])
-            value, problems = self.validator.precise(name, raw, compute)
-            if problems:
-                raise _NotPlain
-            out.append(value)
+            dependency = None if depends is None else depends[i]
+            key = (name, raw, dependency)
+            if key not in memo:
+                compute = check if depends is None else _bound(check, dependency)
+                value, problems = self.validator.precise(name, raw, compute)
+                if problems:
+                    raise _NotPlain
+                memo[key] = value
+            out.append(memo[key])
+        return out
+
+    def _point_values(self) -> dict[str, list[object]]:
+        """Each distinct combination of the point columns, checked column by column (an
+        absent column as a blank cell)."""
+        combos = list(self.points.index)
+        raw: dict[str, list[object]] = {n: [None] * len(combos) for n in _POINT_TEXT}
+        for j, name in enumerate(self.point_names):
+            raw[name] = [c[j] for c in combos]  # type: ignore[index]
+        out = {n: self._checked(n, raw[n]) for n in ("device", "axis", "frequency_hz", "bench")}
+        out["direction"] = self._checked("direction", raw["direction"], out["bench"])
+        out["unit"] = self._checked("unit", raw["unit"], out["device"])
         return out
 
     def _text(self, name: str) -> tuple[list[object], np.ndarray]:
-        """A text column's checked values per distinct cell and each row's code."""
+        """Lab or note: checked values per distinct cell and each row's code."""
         codes = self.texts.get(name)
         if codes is None:  # an absent column: one blank cell stands for every row
             return self._checked(name, [None]), np.zeros(self.n_rows, np.int64)
         return self._checked(name, list(codes.index)), codes.all_codes()
-
-    def _dependent(
-        self, name: str, on: tuple[list[object], np.ndarray]
-    ) -> tuple[list[object], np.ndarray]:
-        """Checked once per distinct (cell, value of the column it depends on)."""
-        own = self.texts.get(name)
-        raws: list[object] = list(own.index) if own else [None]
-        raw_codes = own.all_codes() if own else np.zeros(self.n_rows, np.int64)
-        dep_values, dep_codes = on
-        pairs, inverse = np.unique(dep_codes * len(raws) + raw_codes, return_inverse=True)
-        cells = [raws[p % len(raws)] for p in pairs.tolist()]
-        depends = [dep_values[p // len(raws)] for p in pairs.tolist()]
-        return self._checked(name, cells, depends), inverse.reshape(-1)
 
     def _number(self, name: str) -> np.ndarray:
         if name in self.numbers:
@@ -270,38 +285,44 @@ class _Plain:
 
     def _assemble(self) -> LocalTable:
         """The row-level steps of ``validate_columns`` on whole columns."""
-        text = {
-            n: self._text(n) for n in ("lab", "device", "axis", "frequency_hz", "bench", "note")
-        }
-        text["direction"] = self._dependent("direction", text["bench"])
-        text["unit"] = self._dependent("unit", text["device"])
+        point, at = self._point_values(), self.points.all_codes()
+        labs, lab_codes = self._text("lab")
+        self._text("note")
         sensitivity = self._number("sensitivity")
         expanded = self._number("expanded_uncertainty")
         if "expanded_uncertainty" in self.numbers:
             relative = np.concatenate(self.relative)
             expanded = np.where(relative, sensitivity * expanded / 100, expanded)
-        units, unit_codes = text["unit"]
-        mg = np.isin(unit_codes, [i for i, u in enumerate(units) if u == MG_PER_LSB])
+        mg = np.array([u == MG_PER_LSB for u in point["unit"]], bool)[at]
         if mg.any():  # as an upload: the relative uncertainty is kept through the inversion
-            converted = _mg_per_lsb(sensitivity[mg])  # type: ignore[arg-type]  # same arithmetic
+            converted = _mg_per_lsb(sensitivity[mg])  # the same arithmetic on an array
             expanded[mg] = converted * expanded[mg] / sensitivity[mg]
             sensitivity[mg] = converted
         k = self._number("coverage_factor")
         k = np.where(np.isnan(k), DEFAULT_COVERAGE_FACTOR, k)
         if not (_in_range(sensitivity) & _in_range(expanded) & _in_range(expanded / k)).all():
             raise _NotPlain
-        values, codes = text["frequency_hz"]
-        columns = {
-            "row": np.arange(2, 2 + self.n_rows, dtype=np.int64),
-            **{n: _take(text[n], np.str_) for n in _TEXT_FIELDS},
-            "frequency_hz": np.array(values, np.float64)[codes],
-            "amplitude_m_s2": self._number("amplitude_m_s2"),
-            "sensitivity": sensitivity,
-            "expanded_uncertainty": expanded,
-            "coverage_factor": k,
-        }
-        table = LocalTable(**columns)
-        duplicates, total = find_duplicates(table)
+        table = LocalTable(
+            row=np.arange(2, 2 + self.n_rows, dtype=np.int64),
+            lab=np.array(labs, np.str_)[lab_codes],
+            **{
+                n: np.array(point[n], np.str_)[at] for n in ("device", "axis", "bench", "direction")
+            },
+            frequency_hz=np.array(point["frequency_hz"], np.float64)[at],
+            amplitude_m_s2=self._number("amplitude_m_s2"),
+            sensitivity=sensitivity,
+            expanded_uncertainty=expanded,
+            coverage_factor=k,
+        )
+        names = ("device", "axis", "bench", "direction")
+        keys = [  # what validate._duplicate_key takes of the point, per combination
+            (*(point[n][i] for n in names), _rounded_key(point["frequency_hz"][i]))  # type: ignore[arg-type]
+            for i in range(len(point["device"]))
+        ]
+        duplicates, total = _duplicates(
+            table.row, [_value_codes(labs, lab_codes), _value_codes(keys, at),
+                        _float_codes(table.amplitude_m_s2)],
+        )  # fmt: skip
         if total:
             raise ImportErrors(duplicates, total)
         return table
@@ -309,11 +330,6 @@ class _Plain:
 
 def _bound(check: Compute, dependency: object) -> Compute:
     return lambda c: check(c, dependency)
-
-
-def _take(column: tuple[list[object], np.ndarray], dtype: type) -> np.ndarray:
-    values, codes = column
-    return np.array(values, dtype=dtype)[codes] if len(codes) else np.array([], dtype=dtype)
 
 
 def _in_range(values: np.ndarray) -> np.ndarray:
@@ -363,7 +379,7 @@ def _streamed(stream: BinaryIO, name: str, lab_column: LabColumn) -> LocalTable:
     total = 0
     parts: list[dict[str, np.ndarray]] = []
     try:
-        for chunk in read_chunks(stream, filename=name, lab_column=lab_column):
+        for chunk in read_chunks(stream, filename=name, lab_column=lab_column, limits=False):
             total += len(chunk.errors)
             listed.extend(chunk.errors[: max(0, MAX_LISTED_ERRORS - len(listed))])
             parts.append(_row_columns(chunk.rows))
@@ -409,13 +425,24 @@ def find_duplicates(table: LocalTable) -> tuple[list[RowError], int]:
     repeating the lab and measurement point of an earlier row (frequency and amplitude
     compared to 12 significant digits), naming the first such row. The first
     :data:`MAX_LISTED_ERRORS` of them, and how many there are."""
-    n = len(table)
-    if n < 2:
-        return [], 0
-    key = np.zeros(n, np.int64)
-    for column in _duplicate_columns(table):
-        uniques, codes = np.unique(column, return_inverse=True)
-        key = np.unique(key * len(uniques) + codes.reshape(-1), return_inverse=True)[1].reshape(-1)
+    columns = [table.lab, table.device, table.axis, table.bench, table.direction]
+    codes = [(np.unique(c, return_inverse=True)[1].reshape(-1), len(c)) for c in columns]
+    codes += [_float_codes(table.frequency_hz), _float_codes(table.amplitude_m_s2)]
+    return _duplicates(table.row, codes)
+
+
+def _duplicates(
+    rows: np.ndarray, codes: list[tuple[np.ndarray, int]]
+) -> tuple[list[RowError], int]:
+    """Rows whose codes all equal an earlier row's (``codes``: per column, each row's code
+    and an upper bound of the codes)."""
+    n = rows.size
+    key, size = np.zeros(n, np.int64), 1
+    for column, bound in codes:
+        if size * max(bound, 1) >= 2**62:
+            key = np.unique(key, return_inverse=True)[1].reshape(-1)
+            size = n
+        key, size = key * max(bound, 1) + column, size * max(bound, 1)
     order = np.argsort(key, kind="stable")
     first = np.ones(n, bool)
     first[1:] = key[order][1:] != key[order][:-1]
@@ -424,7 +451,6 @@ def find_duplicates(table: LocalTable) -> tuple[list[RowError], int]:
     earlier = np.empty(n, np.int64)  # per row: the first row with its key
     earlier[order] = order[np.maximum.accumulate(np.where(first, np.arange(n), 0))]
     repeats = np.sort(order[~first])
-    rows = table.row
     listed = [
         RowError(int(rows[i]), None, DUPLICATE.format(int(rows[earlier[i]])))
         for i in repeats[:MAX_LISTED_ERRORS].tolist()
@@ -432,18 +458,19 @@ def find_duplicates(table: LocalTable) -> tuple[list[RowError], int]:
     return listed, int(repeats.size)
 
 
-def _duplicate_columns(table: LocalTable) -> Iterator[np.ndarray]:
-    yield table.lab
-    yield table.device
-    yield table.axis
-    yield _rounded(table.frequency_hz)
-    yield table.bench
-    yield table.direction
-    yield _rounded(table.amplitude_m_s2)
+def _value_codes(values: Sequence[object], codes: np.ndarray) -> tuple[np.ndarray, int]:
+    """Codes of the distinct checked values (two cells may check to the same value)."""
+    ids: dict[object, int] = {}
+    remap = np.array([ids.setdefault(v, len(ids)) for v in values], np.int64)
+    return (remap[codes] if codes.size else codes), len(ids)
 
 
-def _rounded(values: np.ndarray) -> np.ndarray:
-    """``float(f"{v:.12g}")`` per distinct value (NaN, for none, stays NaN)."""
+def _rounded_key(value: float) -> float:
+    return float(f"{value:.12g}")
+
+
+def _float_codes(values: np.ndarray) -> tuple[np.ndarray, int]:
+    """Codes of ``float(f"{v:.12g}")`` per value (NaN, for none, is one code)."""
     uniques, codes = np.unique(values, return_inverse=True)
-    rounded = np.array([float(f"{v:.12g}") for v in uniques.tolist()], np.float64)
-    return rounded[codes.reshape(-1)]
+    rounded = [_rounded_key(v) for v in uniques.tolist()]
+    return _value_codes(rounded, codes.reshape(-1))

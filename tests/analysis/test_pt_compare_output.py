@@ -11,7 +11,7 @@ import orjson
 import pytest
 
 from analysis.management.commands.pt_compare import result_table
-from analysis.offline import render
+from analysis.offline import render, score_json_chunks
 from analysis.pipeline import (
     AssignedSpec,
     ResultTable,
@@ -151,3 +151,16 @@ def test_empty_compatibility_and_many_chunks(varied, monkeypatch):
     for indent in (None, 2):
         assert json.loads(render(new, "json", indent=indent)) == expected
     assert render(new, "csv") == reference.render_csv(reference.to_json(new))
+
+
+@pytest.mark.parametrize("size", [1, 7, 20_000])
+def test_score_json_is_orjson_of_the_records(varied, size):
+    """The records joined from column pieces are byte for byte orjson's of the records."""
+    new = _new_analysis(varied, "weighted-mean", "1%", [])
+    sigma = new.sigma_pt.copy()
+    sigma[::3] = np.nan
+    for analysis in (new, analyse_grouped(new.table, new.groups, new.points, new.assigned,
+                                          sigma=sigma)):  # fmt: skip
+        joined = b"[" + b",".join(score_json_chunks(analysis, size)) + b"]"
+        option = orjson.OPT_SERIALIZE_NUMPY
+        assert joined == orjson.dumps(reference.score_records(analysis), option=option)

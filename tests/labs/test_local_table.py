@@ -223,3 +223,21 @@ def test_streaming_importer_reads_a_file_that_starts_with_blank_lines():
     data = ("\n\n" + HEADER + "\nA,MEMS 1,X,10,linear,vertical,420,4\n").encode()
     (chunk,) = read_chunks(io.BytesIO(data), filename="x.csv")
     assert not chunk.errors and [r.row for r in chunk.rows] == [4]
+
+
+def test_xlsx_without_the_uploads_size_limits(tmp_path, monkeypatch):
+    """A workbook over the upload's unpacked-size limit (lowered here to 1 kB) is read; a
+    macro-enabled one is still refused."""
+    from labs.importers import readers
+
+    rows = [
+        {"lab": f"L{i}", "device": "MEMS 1", "axis": "X", "frequency_hz": 10.0,
+         "bench": "linear", "sensitivity": 420.0 + i, "expanded_uncertainty": 4.0}
+        for i in range(40)
+    ]  # fmt: skip
+    path = tmp_path / "round.xlsx"
+    path.write_bytes(write_table(rows, format="xlsx"))
+    monkeypatch.setattr(readers, "MAX_UNCOMPRESSED_BYTES", 1024)
+    with pytest.raises(ImportErrors, match="unpacks to"):
+        parse_table(path.read_bytes(), filename=path.name, lab_column="required")
+    assert len(read_local_table(path)) == 40
