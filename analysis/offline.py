@@ -1,9 +1,9 @@
 """Output of the offline command ``pt_compare`` (formats.md §4): table, JSON and CSV.
 
 Numbers are kept at full precision in JSON and CSV; only the terminal table
-rounds them for reading.  JSON and CSV are written a chunk of results at a time
-(:func:`analysis.pipeline.score_record_chunks`), JSON by orjson: a national round's
-200,000 or 1,000,000 scores never stand in memory as one document.
+rounds them for reading.  JSON (:mod:`analysis.offline_json`) and CSV are written a
+chunk of results at a time: a national round's 200,000 or 1,000,000 scores never stand
+in memory as one document.
 """
 
 from __future__ import annotations
@@ -11,25 +11,20 @@ from __future__ import annotations
 import csv
 import io
 import os
-import re
 import tempfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
-from itertools import repeat
 from typing import Any, BinaryIO
 
 import numpy as np
-import orjson
 
+from analysis.offline_json import CHUNK, json_parts
 from analysis.pipeline import (
-    POINT_KEYS,
-    SIGMA_KEYS,
     Analysis,
     compatibility_records,
     json_value,
     point_method,
     score_columns,
-    score_record_chunks,
     to_json,
 )
 from labs.importers import write_table
@@ -42,8 +37,6 @@ SCORE_COLUMNS = [
     "exhaustive",
 ]  # fmt: skip
 MATRIX_COLUMNS = ["factor", "group", "level_i", "level_j", "en", "compatible"]
-CHUNK = 20_000  # results per chunk of output
-_JSON = orjson.OPT_SERIALIZE_NUMPY  # NaN and inf are written as null
 
 
 class Sink:
@@ -106,111 +99,6 @@ def _umask() -> int:
     return mask
 
 
-# --- JSON ------------------------------------------------------------------------------------
-
-
-def json_parts(analysis: Analysis, indent: int | None = None) -> Iterator[bytes]:
-    """The document of formats.md §4 (``to_json``'s keys, in order), the scores a chunk at a
-    time; compact, or indented by ``indent`` spaces as ``json.dumps(indent=...)`` lays it out."""
-    doc = to_json(analysis, scores=False)
-    parts = _json_indented(doc, analysis) if indent is not None else _json_compact(doc, analysis)
-    if indent is None or indent == 2:
-        yield from parts
-        return
-    for part in parts:  # orjson indents by two; strings hold no raw line break
-        yield _INDENT.sub(lambda m: b"\n" + b" " * (len(m.group(1)) // 2 * indent), part)
-
-
-_INDENT = re.compile(rb"\n( *)")
-
-
-def _json_compact(doc: dict[str, Any], analysis: Analysis) -> Iterator[bytes]:
-    yield b"{"
-    for n, (key, value) in enumerate(doc.items()):
-        yield (b"," if n else b"") + orjson.dumps(key) + b":"
-        if key != "scores":
-            yield orjson.dumps(value, option=_JSON)
-            continue
-        yield b"["
-        for i, chunk in enumerate(score_json_chunks(analysis, CHUNK)):
-            yield b"," + chunk if i else chunk
-        yield b"]"
-    yield b"}\n"
-
-
-def score_json_chunks(analysis: Analysis, size: int) -> Iterator[bytes]:
-    """The score records as compact JSON, ``size`` records at a time, comma-separated: the
-    bytes of ``orjson.dumps(records)[1:-1]`` without a dictionary per result.
-
-    Each column's values are written by orjson a chunk at a time (a float array in one
-    call; text once per distinct value), the point's keys once per measurement point (the
-    results were grouped by exactly those values), then the records are joined from the
-    pieces."""
-    columns, has_sigma = score_columns(analysis)
-    index = analysis.groups.index
-    heads = np.array(
-        [b"{" + b",".join(_pair(k, v) for k, v in zip(POINT_KEYS, p, strict=True))
-         for p in analysis.points],
-        dtype=object,
-    )  # fmt: skip
-    rest = [k for k in columns if k not in POINT_KEYS]
-    prefixes = {k: b"," + orjson.dumps(k) + b":" for k in rest}
-    memo: dict[str, dict[Any, bytes]] = {k: {} for k in rest}
-    for start in range(0, has_sigma.size, size):
-        rows = slice(start, start + size)
-        sigma = has_sigma[rows]
-        parts: list[Any] = [heads[index[rows]].tolist()]
-        for k in rest:
-            if k in SIGMA_KEYS and not sigma.all():
-                if sigma.any():  # the key only in the records whose point has a σ_pt
-                    values = _fragments(columns[k][rows], memo[k])
-                    has = sigma.tolist()
-                    parts.append(
-                        [prefixes[k] + v if h else b"" for v, h in zip(values, has, strict=True)]
-                    )
-                continue
-            parts += [repeat(prefixes[k]), _fragments(columns[k][rows], memo[k])]
-        parts.append(repeat(b"}"))
-        yield b",".join(map(b"".join, zip(*parts, strict=False)))  # repeat() is endless
-
-
-def _pair(key: str, value: Any) -> bytes:
-    return orjson.dumps(key) + b":" + orjson.dumps(value, option=_JSON)
-
-
-_BOOLS = (b"false", b"true")
-
-
-def _fragments(values: np.ndarray, memo: dict[Any, bytes]) -> list[bytes]:
-    """Each value's JSON text. Object columns hold text, booleans and None only (no number
-    that a dictionary would take for a boolean)."""
-    if values.dtype.kind == "f":
-        return orjson.dumps(np.ascontiguousarray(values), option=_JSON)[1:-1].split(b",")
-    if values.dtype.kind == "b":
-        return list(map(_BOOLS.__getitem__, values.tolist()))
-    items = values.tolist()
-    for v in dict.fromkeys(items):
-        if v not in memo:
-            memo[v] = orjson.dumps(v)
-    return list(map(memo.__getitem__, items))
-
-
-def _json_indented(doc: dict[str, Any], analysis: Analysis) -> Iterator[bytes]:
-    indented = _JSON | orjson.OPT_INDENT_2
-    yield b"{"
-    for n, (key, value) in enumerate(doc.items()):
-        yield (b",\n  " if n else b"\n  ") + orjson.dumps(key) + b": "
-        if key != "scores" or not analysis.table.value.size:
-            yield orjson.dumps(value, option=indented).replace(b"\n", b"\n  ")
-            continue
-        yield b"["
-        for i, chunk in enumerate(score_record_chunks(analysis, CHUNK)):
-            body = orjson.dumps(chunk, option=indented)[2:-2]  # without "[\n" and "\n]"
-            yield (b"," if i else b"") + b"\n  " + body.replace(b"\n", b"\n  ")
-        yield b"\n  ]"
-    yield b"\n}\n"
-
-
 # --- CSV -------------------------------------------------------------------------------------
 
 
@@ -218,14 +106,19 @@ def csv_parts(analysis: Analysis) -> Iterator[str]:
     """Scores joined with their point's assigned value, one row per result; the
     compatibility matrices follow after one blank line in long form (one row per pair).
     Cells as :func:`labs.importers.write_table` writes them (full precision, text escaped
-    against formula execution), built a column at a time."""
+    against formula execution), built a column and a chunk at a time."""
     buffer = io.StringIO(newline="")
     writer = csv.writer(buffer, lineterminator="\r\n")
     writer.writerow(SCORE_COLUMNS)
-    cells = _score_cells(analysis)
-    n = analysis.table.value.size
-    for start in range(0, n, CHUNK):
-        writer.writerows(zip(*(c[start : start + CHUNK] for c in cells), strict=True))
+    columns, has_sigma = _score_table(analysis)
+    for start in range(0, has_sigma.size, CHUNK):
+        rows = slice(start, start + CHUNK)
+        cells = [_cells(values[rows]) for values in columns]
+        for name in ("z", "z_prime", "z_flag"):  # only where the point has a σ_pt
+            column = cells[SCORE_COLUMNS.index(name)]
+            for i in np.flatnonzero(~has_sigma[rows]).tolist():
+                column[i] = ""
+        writer.writerows(zip(*cells, strict=True))
         yield buffer.getvalue()
         buffer.seek(0)
         buffer.truncate()
@@ -235,27 +128,20 @@ def csv_parts(analysis: Analysis) -> Iterator[str]:
         yield "\n" + write_table(pairs, columns=MATRIX_COLUMNS, bom=False).decode()
 
 
-def _score_cells(analysis: Analysis) -> list[list[Any]]:
-    """The CSV cells of every score row, as columns in :data:`SCORE_COLUMNS` order."""
+def _score_table(analysis: Analysis) -> tuple[list[np.ndarray], np.ndarray]:
+    """Every column of the score rows in :data:`SCORE_COLUMNS` order (the point's values
+    joined to each result), and whether each result's point has a σ_pt."""
     columns, has_sigma = score_columns(analysis)
     a, index = analysis.assigned, analysis.groups.index
     n_points = analysis.groups.n_groups
     methods = np.array([point_method(analysis, g) for g in range(n_points)])
-    joined = {
+    columns |= {
         "x_pt": _finite_or_none(a.value)[index],
         "u_x_pt": _finite_or_none(a.standard_uncertainty)[index],
         "method": methods.astype(object)[index],
         "exhaustive": _point_diagnostic(a.diagnostics.get("exhaustive"), n_points)[index],
     }
-    cells = []
-    for name in SCORE_COLUMNS:
-        values = joined[name] if name in joined else columns[name]
-        column = _cells(values)
-        if name in ("z", "z_prime", "z_flag") and not has_sigma.all():
-            for i in np.flatnonzero(~has_sigma).tolist():
-                column[i] = ""
-        cells.append(column)
-    return cells
+    return [columns[name] for name in SCORE_COLUMNS], has_sigma
 
 
 def _point_diagnostic(values: np.ndarray | None, n_points: int) -> np.ndarray:

@@ -11,7 +11,8 @@ import orjson
 import pytest
 
 from analysis.management.commands.pt_compare import result_table
-from analysis.offline import render, score_json_chunks
+from analysis.offline import render
+from analysis.offline_json import score_json_chunks
 from analysis.pipeline import (
     AssignedSpec,
     ResultTable,
@@ -146,6 +147,7 @@ def test_sigma_pt_at_some_points_only(varied, monkeypatch):
 
 def test_empty_compatibility_and_many_chunks(varied, monkeypatch):
     monkeypatch.setattr("analysis.offline.CHUNK", 7)
+    monkeypatch.setattr("analysis.offline_json.CHUNK", 7)
     new = _new_analysis(varied, "algorithm-a", None, [])
     expected = _nulls(reference.to_json(_old_analysis(varied, "algorithm-a", None, [])))
     for indent in (None, 2):
