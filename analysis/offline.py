@@ -1,18 +1,34 @@
 """Output of the offline command ``pt_compare`` (formats.md §4): table, JSON and CSV.
 
 Numbers are kept at full precision in JSON and CSV; only the terminal table
-rounds them for reading.
+rounds them for reading.  JSON (:mod:`analysis.offline_json`) and CSV are written a
+chunk of results at a time: a national round's 200,000 or 1,000,000 scores never stand
+in memory as one document.
 """
 
 from __future__ import annotations
 
+import csv
 import io
-import json
-from collections.abc import Sequence
-from typing import Any
+import os
+import tempfile
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from typing import Any, BinaryIO
 
-from analysis.pipeline import Analysis, to_json
+import numpy as np
+
+from analysis.offline_json import CHUNK, json_parts
+from analysis.pipeline import (
+    Analysis,
+    compatibility_records,
+    json_value,
+    point_method,
+    score_columns,
+    to_json,
+)
 from labs.importers import write_table
+from labs.importers.values import escape_text
 
 SCORE_COLUMNS = [
     "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
@@ -23,28 +39,150 @@ SCORE_COLUMNS = [
 MATRIX_COLUMNS = ["factor", "group", "level_i", "level_j", "en", "compatible"]
 
 
-def render(analysis: Analysis, fmt: str) -> str:
-    doc = to_json(analysis)
+class Sink:
+    """Where output goes: a binary file, or a text stream (standard output)."""
+
+    def __init__(self, binary: BinaryIO | None = None, text: Any = None) -> None:
+        self.binary, self.text = binary, text
+
+    def write(self, data: bytes | str) -> None:
+        if self.binary is not None:
+            self.binary.write(data.encode() if isinstance(data, str) else data)
+        else:  # Django's OutputWrapper adds a line ending unless told not to
+            text = data.decode() if isinstance(data, bytes) else data
+            if hasattr(self.text, "style_func"):
+                self.text.write(text, ending="")
+            else:
+                self.text.write(text)
+
+
+def write(analysis: Analysis, fmt: str, sink: Sink, *, indent: int | None = None) -> None:
     if fmt == "json":
-        return json.dumps(doc, indent=2, ensure_ascii=False) + "\n"
-    if fmt == "csv":
-        return render_csv(doc)
-    return render_table(doc)
+        for chunk in json_parts(analysis, indent):
+            sink.write(chunk)
+    elif fmt == "csv":
+        for part in csv_parts(analysis):
+            sink.write(part)
+    else:
+        sink.write(render_table(to_json(analysis)))
 
 
-def render_csv(doc: dict[str, list[dict[str, Any]]]) -> str:
+def render(analysis: Analysis, fmt: str, *, indent: int | None = None) -> str:
+    """The whole output as one string (small tables, tests)."""
+    buffer = io.BytesIO()
+    write(analysis, fmt, Sink(binary=buffer), indent=indent)
+    return buffer.getvalue().decode()
+
+
+@contextmanager
+def output_sink(path: str | None, stdout: Any) -> Iterator[Sink]:
+    """Standard output, or ``path`` written under a temporary name and renamed when complete:
+    on an error nothing is left at ``path``."""
+    if not path:
+        yield Sink(text=stdout)
+        return
+    folder = os.path.dirname(os.path.abspath(path))
+    handle, temporary = tempfile.mkstemp(prefix=".pt_compare-", dir=folder)
+    try:
+        with os.fdopen(handle, "wb", buffering=2**20) as f:
+            yield Sink(binary=f)
+        os.chmod(temporary, 0o666 & ~_umask())
+        os.replace(temporary, path)
+    except BaseException:
+        os.unlink(temporary)
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+# --- CSV -------------------------------------------------------------------------------------
+
+
+def csv_parts(analysis: Analysis) -> Iterator[str]:
     """Scores joined with their point's assigned value, one row per result; the
-    compatibility matrices follow after one blank line in long form (one row per pair)."""
-    by_point = {_point(a): a for a in doc["assigned_values"]}
-    rows = []
-    for s in doc["scores"]:
-        a = by_point[_point(s)]
-        rows.append(
-            s | {"x_pt": a["value"], "u_x_pt": a["standard_uncertainty"], "method": a["method"],
-                 "exhaustive": a.get("exhaustive")}
-        )  # fmt: skip
-    out = write_table(rows, columns=SCORE_COLUMNS, bom=False).decode()
-    pairs = [
+    compatibility matrices follow after one blank line in long form (one row per pair).
+    Cells as :func:`labs.importers.write_table` writes them (full precision, text escaped
+    against formula execution), built a column and a chunk at a time."""
+    buffer = io.StringIO(newline="")
+    writer = csv.writer(buffer, lineterminator="\r\n")
+    writer.writerow(SCORE_COLUMNS)
+    columns, has_sigma = _score_table(analysis)
+    for start in range(0, has_sigma.size, CHUNK):
+        rows = slice(start, start + CHUNK)
+        cells = [_cells(values[rows]) for values in columns]
+        for name in ("z", "z_prime", "z_flag"):  # only where the point has a σ_pt
+            column = cells[SCORE_COLUMNS.index(name)]
+            for i in np.flatnonzero(~has_sigma[rows]).tolist():
+                column[i] = ""
+        writer.writerows(zip(*cells, strict=True))
+        yield buffer.getvalue()
+        buffer.seek(0)
+        buffer.truncate()
+    yield buffer.getvalue()
+    pairs = _matrix_pairs(compatibility_records(analysis.compatibility))
+    if pairs:
+        yield "\n" + write_table(pairs, columns=MATRIX_COLUMNS, bom=False).decode()
+
+
+def _score_table(analysis: Analysis) -> tuple[list[np.ndarray], np.ndarray]:
+    """Every column of the score rows in :data:`SCORE_COLUMNS` order (the point's values
+    joined to each result), and whether each result's point has a σ_pt."""
+    columns, has_sigma = score_columns(analysis)
+    a, index = analysis.assigned, analysis.groups.index
+    n_points = analysis.groups.n_groups
+    methods = np.array([point_method(analysis, g) for g in range(n_points)])
+    columns |= {
+        "x_pt": _finite_or_none(a.value)[index],
+        "u_x_pt": _finite_or_none(a.standard_uncertainty)[index],
+        "method": methods.astype(object)[index],
+        "exhaustive": _point_diagnostic(a.diagnostics.get("exhaustive"), n_points)[index],
+    }
+    return [columns[name] for name in SCORE_COLUMNS], has_sigma
+
+
+def _point_diagnostic(values: np.ndarray | None, n_points: int) -> np.ndarray:
+    """A per-point diagnostic as its assigned-value record has it (None where absent)."""
+    out = np.full(n_points, None, dtype=object)
+    if values is not None:
+        out[:] = [json_value(v) for v in values]
+    return out
+
+
+def _finite_or_none(values: np.ndarray) -> np.ndarray:
+    """As ``json_value``: the assigned value's non-finite numbers are left empty."""
+    out = values.astype(object)
+    out[~np.isfinite(values)] = None
+    return out
+
+
+def _cells(values: np.ndarray) -> list[Any]:
+    """``write_table``'s cell for each value: repr of a float, TRUE/FALSE, escaped text,
+    empty for None."""
+    if values.dtype.kind == "f":
+        return list(map(repr, values.tolist()))
+    if values.dtype.kind == "b":
+        return ["TRUE" if v else "FALSE" for v in values.tolist()]
+    items = values.tolist()
+    text = {v: _cell(v) for v in set(items)}
+    return [text[v] for v in items]
+
+
+def _cell(value: Any) -> Any:
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return str(value).upper()
+    if isinstance(value, float):
+        return repr(value)
+    return escape_text(str(value))
+
+
+def _matrix_pairs(matrices: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [
         {
             "factor": m["factor"],
             "group": _group_label(m),
@@ -53,14 +191,11 @@ def render_csv(doc: dict[str, list[dict[str, Any]]]) -> str:
             "en": m["en"][i][j],
             "compatible": m["en"][i][j] <= 1.0,
         }
-        for m in doc["compatibility"]
+        for m in matrices
         for i, li in enumerate(m["levels"])
         for j, lj in enumerate(m["levels"])
         if j > i
     ]
-    if pairs:
-        out += "\n" + write_table(pairs, columns=MATRIX_COLUMNS, bom=False).decode()
-    return out
 
 
 def _point(rec: dict[str, Any]) -> tuple[Any, ...]:

@@ -11,7 +11,6 @@ from itertools import combinations
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import stats
 
 from analysis.core.groups import (
     BoolArray,
@@ -21,6 +20,7 @@ from analysis.core.groups import (
     IntArray,
     as_finite,
 )
+from analysis.core.lazy import stats  # scipy.stats on first use: 0.5 s of start-up
 from analysis.core.types import AssignedValues
 from analysis.core.uncertainty import Distribution, absolute_from_relative, u_from_tolerance
 

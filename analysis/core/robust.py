@@ -22,7 +22,6 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import stats
 
 from analysis.core.groups import (
     BoolArray,
@@ -32,6 +31,7 @@ from analysis.core.groups import (
     IntArray,
     as_finite,
 )
+from analysis.core.lazy import stats  # scipy.stats on first use: 0.5 s of start-up
 from analysis.core.types import AssignedValues
 
 MADE_FACTOR = 1.483  # ISO 13528:2022 C.2.2

@@ -12,9 +12,9 @@ from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import stats
 
 from analysis.core.groups import CoreInputError, FloatArray, as_finite
+from analysis.core.lazy import stats  # scipy.stats on first use: 0.5 s of start-up
 
 G_N = 9.80665
 """Standard acceleration of gravity g_n in m/s² (CGPM 1901, exact)."""

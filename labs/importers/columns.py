@@ -204,26 +204,43 @@ def _fast_number(raw: object, decimal_comma: bool) -> float | None:
     return value if _MIN <= value <= _MAX else None
 
 
-def _field_values(v: _Validator, context: TableContext | None, lab_column: LabColumn) -> dict:
-    """Every column converted; failing cells are ``None`` and their rows marked bad."""
+#: How a column is read: ``text`` (each distinct cell checked once), ``number`` (plain
+#: numbers through ``float()``, the rest checked once per distinct cell) or ``depends``
+#: (checked once per distinct pair of the cell and another column's value).
+FieldCheck = tuple[str, str, Compute, str | None]
+
+
+def field_checks(context: TableContext | None, lab_column: LabColumn) -> list[FieldCheck]:
+    """``(field, kind, check, dependency)`` for every column, in the order they are read:
+    the one table of per-cell checks, shared with :mod:`labs.importers.local`."""
     axes = context.axes if context else AXES
     benches = context.benches if context else BENCHES
     bench_universe = tuple(dict.fromkeys((*BENCHES, *benches)))
-    out: dict[str, list[object]] = {
-        "device": v.column("device", lambda c: _device(c, context)),
-        "axis": v.column("axis", lambda c: c.choice("axis", axes, AXES)),
-        "frequency_hz": v.column("frequency_hz", lambda c: _frequency(c, context)),
-        "bench": v.column("bench", lambda c: c.choice("bench", benches, bench_universe)),
-        "expanded_uncertainty": v.number_column("expanded_uncertainty", _uncertainty),
-        "lab": v.column("lab", lambda c: _lab(c, lab_column)),
-        "note": v.column("note", _note),
-    }
+    checks: list[FieldCheck] = [
+        ("device", "text", lambda c: _device(c, context), None),
+        ("axis", "text", lambda c: c.choice("axis", axes, AXES), None),
+        ("frequency_hz", "text", lambda c: _frequency(c, context), None),
+        ("bench", "text", lambda c: c.choice("bench", benches, bench_universe), None),
+        ("expanded_uncertainty", "number", _uncertainty, None),
+        ("lab", "text", lambda c: _lab(c, lab_column), None),
+        ("note", "text", _note, None),
+    ]
     for field, (required, allow_inf) in _NUMBERS.items():
         check = functools.partial(_number, field=field, required=required, allow_inf=allow_inf)
-        out[field] = v.number_column(field, check)
-    out["direction"] = v.column("direction", functools.partial(_direction, context=context),
-                                out["bench"])  # fmt: skip
-    out["unit"] = v.column("unit", functools.partial(_unit, context=context), out["device"])
+        checks.append((field, "number", check, None))
+    checks.append(("direction", "depends", functools.partial(_direction, context=context), "bench"))
+    checks.append(("unit", "depends", functools.partial(_unit, context=context), "device"))
+    return checks
+
+
+def _field_values(v: _Validator, context: TableContext | None, lab_column: LabColumn) -> dict:
+    """Every column converted; failing cells are ``None`` and their rows marked bad."""
+    out: dict[str, list[object]] = {}
+    for field, kind, check, dependency in field_checks(context, lab_column):
+        if kind == "number":
+            out[field] = v.number_column(field, check)
+        else:
+            out[field] = v.column(field, check, out[dependency] if dependency else None)
     return out
 
 

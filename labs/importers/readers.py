@@ -263,13 +263,25 @@ def read_csv(data: bytes, *, max_rows: int, header_check: HeaderCheck | None = N
 # --- XLSX ------------------------------------------------------------------------------------
 
 
-def inspect_zip(data: bytes) -> None:
-    """Refuse a ZIP bomb or a macro-enabled workbook before any XML is parsed."""
+def inspect_zip(data: bytes, *, limits: bool = True) -> None:
+    """Refuse a ZIP bomb or a macro-enabled workbook before any XML is parsed.
+
+    ``limits=False`` (a local file, read as a stream): only the macros are refused."""
     try:
         with zipfile.ZipFile(io.BytesIO(data)) as archive:
             members = archive.infolist()
     except (zipfile.BadZipFile, ValueError) as error:
         raise fatal(f"the file looks like XLSX but is not a readable workbook: {error}") from None
+    if limits:
+        _check_sizes(members)
+    for member in members:
+        if member.filename.lower().endswith("vbaproject.bin"):
+            raise fatal(
+                f"the workbook contains macros ({member.filename}); save it as .xlsx without macros"
+            )
+
+
+def _check_sizes(members: list[zipfile.ZipInfo]) -> None:
     if len(members) > MAX_ZIP_MEMBERS:
         raise fatal(f"the workbook holds {len(members)} parts; the limit is {MAX_ZIP_MEMBERS}")
     total = sum(member.file_size for member in members)
@@ -284,10 +296,6 @@ def inspect_zip(data: bytes) -> None:
             raise fatal(
                 f"the workbook part {member.filename} is compressed {ratio:.0f}:1, the mark of "
                 f"a ZIP bomb; the limit is {MAX_COMPRESSION_RATIO}:1"
-            )
-        if member.filename.lower().endswith("vbaproject.bin"):
-            raise fatal(
-                f"the workbook contains macros ({member.filename}); save it as .xlsx without macros"
             )
 
 

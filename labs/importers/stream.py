@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import codecs
 import csv
+import io
 import itertools
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -61,11 +62,13 @@ def read_chunks(
     lab_column: LabColumn = "required",
     context: TableContext | None = None,
     chunk_rows: int = 50_000,
+    limits: bool = True,
 ) -> Iterator[Chunk]:
     """The data rows of a CSV or XLSX table, ``chunk_rows`` at a time.
 
     Header problems and unreadable files raise :class:`ImportErrors` before any
     chunk; row numbers are the ones :func:`~labs.importers.parse_table` gives.
+    ``limits=False`` (a local file): no size limit on an XLSX workbook's parts.
     """
     head = stream.read(4)
     if (filename or "").lower().endswith((".xlsm", ".xltm", ".xlam")):
@@ -73,7 +76,7 @@ def read_chunks(
     if head.startswith(_OLE_MAGIC):
         raise fatal("legacy .xls workbooks are not supported; save the file as .xlsx or CSV")
     if head.startswith(_ZIP_MAGIC):
-        yield from _xlsx_chunks(head + stream.read(), lab_column, context, chunk_rows)
+        yield from _xlsx_chunks(head + stream.read(), lab_column, context, chunk_rows, limits)
         return
     if (filename or "").lower().endswith(".xlsx"):
         raise fatal("the file name ends in .xlsx but the content is not an XLSX workbook")
@@ -143,7 +146,8 @@ def _check(
 
 def _csv_records(head: bytes, stream: BinaryIO, shape: Shape) -> tuple[Records, bool]:
     """Records of a UTF-8 CSV stream; the delimiter is sniffed on the first non-empty line."""
-    lines = _lines(itertools.chain([head + stream.readline()], stream))
+    # The 4 bytes already read may hold whole lines (a file that starts with blank lines).
+    lines = _lines(itertools.chain(io.BytesIO(head + stream.readline()), stream))
     first: list[str] = []
     for line in lines:
         first.append(line)
@@ -184,10 +188,14 @@ def _lines(raw_lines: Iterator[bytes]) -> Iterator[str]:
 
 
 def _xlsx_chunks(
-    data: bytes, lab_column: LabColumn, context: TableContext | None, chunk_rows: int
+    data: bytes,
+    lab_column: LabColumn,
+    context: TableContext | None,
+    chunk_rows: int,
+    limits: bool = True,
 ) -> Iterator[Chunk]:
     """The worksheet read row by row (openpyxl read-only); the ZIP checks of an upload apply."""
-    inspect_zip(data)
+    inspect_zip(data, limits=limits)
     workbook = open_workbook(data)
     try:
         found: list[tuple[int, int, str, str]] = []

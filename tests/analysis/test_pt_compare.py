@@ -8,6 +8,7 @@ import sys
 from io import StringIO
 from pathlib import Path
 
+import numpy as np
 import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
@@ -266,3 +267,75 @@ def test_demo_export_reproduces_table2(tmp_path):
     assert len(full["scores"]) == 891 and len(full["assigned_values"]) == 81
     outlier_flags = {s["flag"] for s in full["scores"] if s["device"] == "MEMS 2" and s["en"] > 1}
     assert outlier_flags == {"action"}
+
+
+def manage(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "manage.py", "pt_compare", *args],
+        cwd=ROOT, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+
+
+def test_stdout_is_the_json_and_nothing_else(tmp_path):
+    """A real process: no start-up log line (django-axes' "AXES: BEGIN") on either stream."""
+    proc = manage(str(table1_csv(tmp_path)), "--format", "json", "--compare", "bench")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr == ""
+    doc = json.loads(proc.stdout)
+    assert set(doc) == {"assigned_values", "scores", "compatibility"}
+    assert proc.stdout.count("\n") == 1  # compact by default
+    assert doc == run(str(table1_csv(tmp_path)), "--compare", "bench")
+
+
+def test_indent(tmp_path):
+    out = StringIO()
+    call_command("pt_compare", str(table1_csv(tmp_path)), "--format", "json", "--indent", "4",
+                 stdout=out)  # fmt: skip
+    text = out.getvalue()
+    assert text.startswith('{\n    "assigned_values": [\n        {\n            "device": ')
+    assert json.loads(text) == run(str(table1_csv(tmp_path)))
+    with pytest.raises(CommandError, match="--indent") as err:
+        call_command("pt_compare", str(table1_csv(tmp_path)), "--indent", "-1", stdout=out)
+    assert err.value.returncode == 2
+
+
+def test_more_than_1000_bad_rows_listed_with_a_count(tmp_path):
+    lines = [HEADER] + [
+        f"L{i},MEMS 1,X,10,linear,vertical,420,{-3 if i % 2 else 4}" for i in range(2500)
+    ]
+    path = tmp_path / "bad.csv"
+    path.write_text("\n".join(lines) + "\n")
+    target = tmp_path / "out.json"
+    proc = manage(str(path), "--format", "json", "--output", str(target))
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    listed = [line for line in proc.stderr.splitlines() if line.startswith("row ")]
+    assert len(listed) == 1000
+    assert listed[0] == "row 3, column expanded_uncertainty: must be > 0, got -3"
+    assert "... and 250 more problems" in proc.stderr
+    assert not target.exists() and list(tmp_path.iterdir()) == [path]
+
+
+def test_a_local_file_has_no_upload_limit(tmp_path):
+    """A 6 MB file, over a web upload's 5 MB, is analysed whole (the row limit is lifted
+    too: tests/labs/test_local_table.py)."""
+    from labs.importers import MAX_BYTES, ImportErrors, parse_table
+
+    n = 30_000
+    x = 418 + np.random.default_rng(1).normal(0, 2, n)
+    path = tmp_path / "round.csv"
+    with path.open("w") as f:
+        f.write(HEADER + ",note\n")
+        f.writelines(
+            f"L{i // 100:04d},MEMS 1,X,{10 + i % 100},linear,vertical,{v!r},4.25,{'n' * 150}\n"
+            for i, v in enumerate(x.tolist())
+        )
+    assert path.stat().st_size > MAX_BYTES
+    with pytest.raises(ImportErrors, match="the limit is 5 MB"):
+        parse_table(path.read_bytes(), lab_column="required")
+    target = tmp_path / "round.json"
+    call_command("pt_compare", str(path), "--assigned", "algorithm-a", "--format", "json",
+                 "--output", str(target))  # fmt: skip
+    doc = json.loads(target.read_text())
+    assert len(doc["scores"]) == n and len(doc["assigned_values"]) == 100
+    assert sum(a["n"] for a in doc["assigned_values"]) == n

@@ -1,17 +1,25 @@
 """python manage.py pt_compare RESULTS.csv — analyse a results table offline (formats.md §4).
 
-No database or server is used: the file is read by the same importer as the web
-upload, the numbers come from ``analysis.pipeline``. Exit code 2 on bad input.
+No database or server is used: the file is checked as the web upload checks it, but
+without the upload's size and row limits (a local file may be a whole national round),
+by :func:`labs.importers.local.read_local_table`; the numbers come from
+``analysis.pipeline``.  Bad input: exit code 2, the first 1,000 problems and the count of
+the rest on standard error, nothing written.  Standard output holds the requested output
+only (``manage.py`` keeps start-up log lines off it, see ``QUIET_COMMANDS`` there).
 """
 
+import contextlib
+import gc
+from collections.abc import Iterator
 from pathlib import Path
 
 from django.core.management.base import BaseCommand, CommandError
 
 from analysis.core.groups import CoreInputError
-from analysis.offline import approximate_points, approximate_warning, render, write_output
+from analysis.offline import approximate_points, approximate_warning, output_sink, write
 from analysis.pipeline import FACTORS, AssignedSpec, ResultTable, SigmaPtSpec, analyse
-from labs.importers import ImportErrors, parse_table
+from labs.importers import ImportErrors
+from labs.importers.local import LocalTable, read_local_table
 
 BY_KEYS = ("lab", "device", "axis", "frequency", "frequency_hz", "bench", "direction")
 
@@ -45,6 +53,10 @@ class Command(BaseCommand):
         parser.add_argument("--en-limit", type=float, default=1.0)
         parser.add_argument("--format", choices=["table", "json", "csv"], default="table")
         parser.add_argument("--output", help="write to this file instead of standard output")
+        parser.add_argument(
+            "--indent", type=int, default=None, metavar="N",
+            help="JSON only: indented by N spaces, for reading (default: compact, one line)",
+        )  # fmt: skip
 
     def handle(self, *args, **opts):
         try:
@@ -52,22 +64,63 @@ class Command(BaseCommand):
             sigma = SigmaPtSpec.parse(opts["sigma_pt"])
         except ValueError as exc:
             raise CommandError(str(exc), returncode=2) from None
+        if opts["indent"] is not None and not 0 <= opts["indent"] <= 16:
+            raise CommandError("--indent takes a number of spaces from 0 to 16", returncode=2)
         path = Path(opts["results"])
-        if not path.is_file():
-            raise CommandError(f"{path}: no such file", returncode=2)
-        try:
-            rows = parse_table(path.read_bytes(), filename=path.name, lab_column="required")
-        except ImportErrors as exc:
-            raise CommandError(f"{path} was not analysed:\n{exc}", returncode=2) from None
+        table = _read(path)
         by = [b.replace("frequency_hz", "frequency") for b in opts["by"]] if opts["by"] else None
         compare = [(f, [b for b in by if b != f] if by else None) for f in opts["compare"]]
         try:
             result = analyse(
-                ResultTable.from_rows(rows), spec, sigma_pt=sigma,
+                result_table(table), spec, sigma_pt=sigma,
                 en_limit=opts["en_limit"], compare=compare,
             )  # fmt: skip
         except CoreInputError as exc:
             raise CommandError(f"{path} could not be analysed: {exc}", returncode=2) from None
         if n := approximate_points(result):
             self.stderr.write(approximate_warning(n))
-        write_output(render(result, opts["format"]), opts["output"], self.stdout)
+        try:
+            with output_sink(opts["output"], self.stdout) as sink, _gc_paused():
+                write(result, opts["format"], sink, indent=opts["indent"])
+        except OSError as exc:
+            where = opts["output"] or "standard output"
+            raise CommandError(f"{where} cannot be written: {exc.strerror}", returncode=2) from None
+
+
+def _read(path: Path) -> LocalTable:
+    if not path.is_file():
+        raise CommandError(f"{path}: no such file", returncode=2)
+    try:
+        return read_local_table(path)
+    except ImportErrors as exc:
+        raise CommandError(f"{path} was not analysed:\n{exc}", returncode=2) from None
+    except OSError as exc:
+        raise CommandError(f"{path} cannot be read: {exc.strerror}", returncode=2) from None
+
+
+@contextlib.contextmanager
+def _gc_paused() -> Iterator[None]:
+    """No cyclic garbage collection while the records are written: hundreds of thousands
+    of short-lived containers, none in a cycle; the collector would only walk them."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
+def result_table(table: LocalTable) -> ResultTable:
+    """The columns the analysis takes (``ResultTable.from_rows`` of the same rows)."""
+    return ResultTable(
+        lab=table.lab,
+        device=table.device,
+        axis=table.axis,
+        frequency_hz=table.frequency_hz,
+        bench=table.bench,
+        direction=table.direction,
+        value=table.sensitivity,
+        expanded_uncertainty=table.expanded_uncertainty,
+        coverage_factor=table.coverage_factor,
+    )
