@@ -123,7 +123,8 @@ def csv_parts(analysis: Analysis) -> Iterator[str]:
         buffer.seek(0)
         buffer.truncate()
     yield buffer.getvalue()
-    pairs = _matrix_pairs(compatibility_records(analysis.compatibility))
+    limits = [m.limit for m in analysis.compatibility]
+    pairs = _matrix_pairs(compatibility_records(analysis.compatibility), limits)
     if pairs:
         yield "\n" + write_table(pairs, columns=MATRIX_COLUMNS, bom=False).decode()
 
@@ -181,7 +182,8 @@ def _cell(value: Any) -> Any:
     return escape_text(str(value))
 
 
-def _matrix_pairs(matrices: list[dict[str, Any]]) -> list[dict[str, Any]]:
+def _matrix_pairs(matrices: list[dict[str, Any]], limits: list[float]) -> list[dict[str, Any]]:
+    """The matrices in long form; ``compatible`` is En ≤ the run's limit (``--en-limit``)."""
     return [
         {
             "factor": m["factor"],
@@ -189,9 +191,9 @@ def _matrix_pairs(matrices: list[dict[str, Any]]) -> list[dict[str, Any]]:
             "level_i": li,
             "level_j": lj,
             "en": m["en"][i][j],
-            "compatible": m["en"][i][j] <= 1.0,
+            "compatible": m["en"][i][j] <= limit,
         }
-        for m in matrices
+        for m, limit in zip(matrices, limits, strict=True)
         for i, li in enumerate(m["levels"])
         for j, lj in enumerate(m["levels"])
         if j > i

@@ -443,6 +443,12 @@ def excluded_labs(analysis: Analysis) -> list[list[str] | None]:
     return out
 
 
+# A diagnostic's key in the JSON where the method's name would hide another: the weighted
+# mean's ``n`` (the results in the consistent subset) is not the point's ``n`` (all its
+# results, scored).
+_DIAGNOSTIC_KEYS = {"n": "n_included"}
+
+
 def assigned_records(analysis: Analysis) -> list[dict[str, Any]]:
     a = analysis.assigned
     big_u, k_pt = a.expanded_uncertainty, a.coverage_factors
@@ -461,7 +467,7 @@ def assigned_records(analysis: Analysis) -> list[dict[str, Any]]:
         if math.isfinite(analysis.sigma_pt[g]):
             rec["sigma_pt"] = json_value(analysis.sigma_pt[g])
         rec |= {
-            k: json_value(v[g])
+            _DIAGNOSTIC_KEYS.get(k, k): json_value(v[g])
             for k, v in a.diagnostics.items()
             if np.ndim(v) == 1 and not k.startswith("_") and k != "method"
         }

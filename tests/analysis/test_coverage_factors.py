@@ -113,6 +113,7 @@ def test_inclusion_flags_of_a_largest_consistent_subset(tmp_path: Path) -> None:
     (a,) = doc["assigned_values"]
     assert a["method"] == "largest_consistent_subset" and a["n_excluded"] == 1
     assert a["excluded"] == ["OUT"]
+    assert (a["n"], a["n_included"]) == (6, 5)  # the point's results; the subset's
     scores = {s["lab"]: s for s in doc["scores"]}
     assert scores["OUT"]["in_assigned_value"] is False
     assert scores["OUT"]["correlation_applied"] is False
@@ -122,3 +123,22 @@ def test_inclusion_flags_of_a_largest_consistent_subset(tmp_path: Path) -> None:
     assert {s["in_assigned_value"] for s in nominal["scores"]} == {None}
     robust = pt_compare(write(tmp_path, rows), "--assigned", "algorithm-a")
     assert {s["in_assigned_value"] for s in robust["scores"]} == {True}
+
+
+def test_csv_compatible_follows_the_en_limit(tmp_path: Path) -> None:
+    # two labs, En between them = 3 / √(2² + 2²) = 1.0607: incompatible at 1, not at 1.5
+    rows = [
+        "A,MEMS 1,X,10,linear,vertical,100.0,2.0,2",
+        "B,MEMS 1,X,10,linear,vertical,103.0,2.0,2",
+    ]
+    path = write(tmp_path, rows)
+    for limit, compatible in (("1", "FALSE"), ("1.5", "TRUE")):
+        out = StringIO()
+        call_command(
+            "pt_compare", str(path), "--compare", "lab", "--en-limit", limit, "--format", "csv",
+            stdout=out,
+        )  # fmt: skip
+        pairs = out.getvalue().split("\n\n")[1].splitlines()
+        assert pairs[0].split(",")[-2:] == ["en", "compatible"]
+        en, flag = pairs[1].split(",")[-2:]
+        assert float(en) == pytest.approx(3 / math.sqrt(8), rel=1e-12) and flag == compatible

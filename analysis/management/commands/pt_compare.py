@@ -5,7 +5,7 @@ without the upload's size and row limits (a local file may be a whole national r
 by :func:`labs.importers.local.read_local_table`; the numbers come from
 ``analysis.pipeline``.  Bad input: exit code 2, the first 1,000 problems and the count of
 the rest on standard error, nothing written.  Standard output holds the requested output
-only (``manage.py`` keeps start-up log lines off it, see ``QUIET_COMMANDS`` there).
+only (``manage.py`` runs it without ``django.setup()``, see ``STANDALONE_COMMANDS`` there).
 """
 
 import contextlib
