@@ -32,6 +32,7 @@ from analysis.core.groups import (
     as_finite,
 )
 from analysis.core.lazy import stats  # scipy.stats on first use: 0.5 s of start-up
+from analysis.core.qhampel import hampel_location, q_method_scale
 from analysis.core.types import AssignedValues
 
 MADE_FACTOR = 1.483  # ISO 13528:2022 C.2.2
@@ -236,6 +237,25 @@ def median_niqr(x: ArrayLike, groups: Groups) -> AssignedValues:
     s_star = NIQR_FACTOR * (_row_quantile(s, 0.75) - _row_quantile(s, 0.25))
     degenerate = (s_star == 0) | _more_than_half_identical(s, med)
     return _assigned(s, med, s_star, "median_niqr", groups, degenerate=degenerate)
+
+
+def q_hampel(x: ArrayLike, groups: Groups) -> AssignedValues:
+    """Q/Hampel, ISO 13528:2022 C.5.4: s* by the Q method (C.5.2.2, one result per
+    laboratory) and x* by the Hampel estimator with that s* (C.5.3.3, finite-step
+    algorithm: the zero of sum psi((x_i - x*) / s*) closest to the median); u(x_pt) =
+    1.25 s*/sqrt(p) (7.7.3, as for the other robust estimators here).  Algorithms and
+    conventions (ties, rounding): :mod:`analysis.core.qhampel`.
+
+    Diagnostics: ``s_star``, ``n``, ``degenerate`` (s* = 0: all results identical, or a
+    single one; x* is then the median) and ``median_fallback`` (x* is the median because
+    no single zero is closest to it, or s* = 0)."""
+    s = _sorted_groups("x", x, groups)
+    med = _row_median(s)
+    s_star, _ = q_method_scale(s.rows, s.n)
+    x_star, fallback = hampel_location(s.rows, s.n, med, s_star)
+    return _assigned(
+        s, x_star, s_star, "q_hampel", groups, degenerate=s_star == 0, median_fallback=fallback
+    )
 
 
 @dataclass
