@@ -15,6 +15,7 @@ iteration touches a handful of results per group.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
@@ -588,21 +589,54 @@ def algorithm_a(
     )
 
 
+SIGMA_PT_ESTIMATORS = ("algorithm_a", "q_method")
+
+
 def sigma_pt_robust(
-    x: ArrayLike, groups: Groups, *, rtol: float = 1e-10, max_iter: int = 500
+    x: ArrayLike,
+    groups: Groups,
+    *,
+    rtol: float = 1e-10,
+    max_iter: int = 500,
+    estimator: str | Sequence[str] = "algorithm_a",
 ) -> FloatArray:
-    """sigma_pt = robust standard deviation s* of Algorithm A per group (ISO 13528:2022
-    8.7 with C.3).  Raises CoreInputError for groups where s* = 0 (degenerate data):
-    no z score can be formed there; prescribe sigma_pt for those measurement points."""
-    av = algorithm_a(x, groups, rtol=rtol, max_iter=max_iter)
-    s_star = av.diagnostics["s_star"]
+    """sigma_pt = robust standard deviation s* of the round per group (ISO 13528:2022 8.7):
+    by Algorithm A (C.3), or by the Q method (C.5.2.2) where ``estimator`` (one name, or
+    one per group) is ``"q_method"``, the s* that goes with a Q/Hampel assigned value.
+    Raises CoreInputError for groups where s* = 0 (degenerate data): no z score can be
+    formed there; prescribe sigma_pt for those measurement points."""
+    names = np.broadcast_to(np.asarray(estimator, dtype=object), (groups.n_groups,))
+    unknown = set(names.tolist()) - set(SIGMA_PT_ESTIMATORS)
+    if unknown:
+        raise CoreInputError(f"unknown robust estimator(s) {sorted(unknown)!r} for sigma_pt")
+    s_star = np.zeros(groups.n_groups)
+    for name in SIGMA_PT_ESTIMATORS:  # a loop over two estimators, not over groups
+        sel = np.flatnonzero(names == name)
+        if not sel.size:
+            continue
+        part, sub = _subset(x, groups, sel)
+        if name == "q_method":
+            s_star[sel] = q_hampel(part, sub).diagnostics["s_star"]
+        else:
+            s_star[sel] = algorithm_a(part, sub, rtol=rtol, max_iter=max_iter).diagnostics["s_star"]
     bad = np.flatnonzero(s_star == 0)
     if bad.size:
         raise CoreInputError(
             f"robust s* is 0 for group(s) {bad[:10].tolist()} (more than half of the results "
-            "identical or a single result): prescribe sigma_pt for these measurement points"
+            "identical for Algorithm A, all of them for the Q method, or a single result): "
+            "prescribe sigma_pt for these measurement points"
         )
-    return np.asarray(s_star, dtype=np.float64)
+    return s_star
+
+
+def _subset(x: ArrayLike, groups: Groups, sel: IntArray) -> tuple[FloatArray, Groups]:
+    """The results of the selected groups, as groups 0 .. sel.size - 1 in that order."""
+    arr = np.asarray(x, dtype=np.float64).reshape(-1)
+    if sel.size == groups.n_groups:
+        return arr, groups
+    rows = np.flatnonzero(np.isin(groups.index, sel))
+    index = np.searchsorted(sel, groups.index[rows])
+    return arr[rows], Groups.from_index(index, sel.size)
 
 
 def algorithm_s_factors(degrees_of_freedom: ArrayLike) -> tuple[FloatArray, FloatArray]:

@@ -236,3 +236,19 @@ def test_bad_input_rejected() -> None:
         robust.q_hampel([1.0, np.nan], Groups.from_index([0, 0]))
     with pytest.raises(CoreInputError, match=r"group\(s\) \[1\] have no results"):
         robust.q_hampel([1.0, 2.0], Groups.from_index([0, 2]))
+
+
+def test_sigma_pt_robust_takes_the_q_method_s_star_where_asked() -> None:
+    rng = np.random.default_rng(2)
+    data = [[*rng.normal(10, 1, size=k), 30.0] for k in (8, 15, 40)]
+    x, groups = _flat(data)
+    sigma = robust.sigma_pt_robust(x, groups, estimator=["q_method", "algorithm_a", "q_method"])
+    q = robust.q_hampel(x, groups).diagnostics["s_star"]
+    a = robust.algorithm_a(x, groups).diagnostics["s_star"]
+    np.testing.assert_array_equal(sigma, [q[0], a[1], q[2]])
+    np.testing.assert_array_equal(robust.sigma_pt_robust(x, groups), a)
+    with pytest.raises(CoreInputError, match=r"unknown robust estimator\(s\) \['qn'\]"):
+        robust.sigma_pt_robust(x, groups, estimator="qn")
+    x2, g2 = _flat([[1.0, 2.0, 4.0], [3.0, 3.0, 3.0]])
+    with pytest.raises(CoreInputError, match=r"group\(s\) \[1\].*all of them for the Q method"):
+        robust.sigma_pt_robust(x2, g2, estimator="q_method")
