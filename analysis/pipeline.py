@@ -26,7 +26,10 @@ from analysis.core.types import AssignedValues
 from labs.importers import ResultRow
 
 POINT_KEYS = ("device", "axis", "frequency_hz", "bench", "direction")
-METHODS = ("reference", "nominal", "weighted_mean", "algorithm_a", "median", "dersimonian_laird")
+METHODS = (
+    "reference", "nominal", "weighted_mean", "algorithm_a", "median", "median_niqr", "q_hampel",
+    "dersimonian_laird",
+)  # fmt: skip
 FACTORS = ("lab", "axis", "frequency", "device", "bench", "direction")
 
 
@@ -92,7 +95,8 @@ class AssignedSpec:
     @classmethod
     def parse(cls, text: str) -> AssignedSpec:
         """``reference:<LAB>`` | ``nominal:<value>:<tol>[%][:rect|:normal]`` |
-        ``weighted-mean`` | ``algorithm-a`` | ``median`` | ``dersimonian-laird``."""
+        ``weighted-mean`` | ``algorithm-a`` | ``median`` (MADe) | ``median-niqr`` |
+        ``q-hampel`` | ``dersimonian-laird``."""
         head, _, rest = text.partition(":")
         method = head.strip().lower().replace("-", "_")
         if method == "reference" and rest.strip():
@@ -104,7 +108,7 @@ class AssignedSpec:
         raise ValueError(
             f"--assigned {text!r} is not understood; use reference:<LAB>, "
             "nominal:<value>:<tolerance>[%][:rect|:normal], weighted-mean, algorithm-a, "
-            "median or dersimonian-laird"
+            "median, median-niqr, q-hampel or dersimonian-laird"
         )
 
     @classmethod
@@ -322,6 +326,10 @@ def assigned_values(
         return robust.algorithm_a(x, groups)
     if spec.method == "median":
         return robust.median_made(x, groups)
+    if spec.method == "median_niqr":
+        return robust.median_niqr(x, groups)
+    if spec.method == "q_hampel":
+        return robust.q_hampel(x, groups)
     if spec.method == "dersimonian_laird":
         return av.dersimonian_laird(x, u, groups)
     raise CoreInputError(f"unknown assigned-value method {spec.method!r}")
@@ -355,7 +363,10 @@ def sigma_pt_values(
     if spec.mode == "none":
         return np.full(groups.n_groups, np.nan)
     if spec.mode == "robust":
-        return robust.sigma_pt_robust(x, groups)
+        # Algorithm A's s*, except at points assigned by Q/Hampel: their Q method s*
+        methods = point_methods(values, groups.n_groups)
+        estimator = ["q_method" if m == "q_hampel" else "algorithm_a" for m in methods]
+        return robust.sigma_pt_robust(x, groups, estimator=estimator)
     assert spec.value is not None
     return av.sigma_pt_prescribed(
         spec.value, groups.n_groups, x_pt=values.value, relative=spec.mode == "relative"
@@ -400,6 +411,13 @@ def point_method_of(values: AssignedValues, g: int) -> str:
     if values.method == "largest_consistent_subset":
         return "weighted_mean" if bool(values.diagnostics["consistent_all"][g]) else values.method
     return values.method
+
+
+def point_methods(values: AssignedValues, n_groups: int) -> list[str]:
+    """The method of every point, as :func:`point_method_of`."""
+    if values.method == "mixed":
+        return [str(m) for m in values.diagnostics["method"]]
+    return [point_method_of(values, g) for g in range(n_groups)]
 
 
 def point_method(analysis: Analysis, g: int) -> str:

@@ -155,6 +155,8 @@ _METHOD_SPEC = {
     AssignedValueMethod.WEIGHTED_MEAN: "weighted_mean",
     AssignedValueMethod.ALGORITHM_A: "algorithm_a",
     AssignedValueMethod.MEDIAN: "median",
+    AssignedValueMethod.MEDIAN_NIQR: "median_niqr",
+    AssignedValueMethod.Q_HAMPEL: "q_hampel",
     AssignedValueMethod.DERSIMONIAN_LAIRD: "dersimonian_laird",
 }
 

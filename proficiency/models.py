@@ -34,6 +34,8 @@ class AssignedValueMethod(models.TextChoices):
     WEIGHTED_MEAN = "weighted_mean", "Weighted mean (largest consistent subset if inconsistent)"
     ALGORITHM_A = "algorithm_a", "Robust consensus (ISO 13528 Algorithm A)"
     MEDIAN = "median", "Median with MADe"
+    MEDIAN_NIQR = "median_niqr", "Median with nIQR"
+    Q_HAMPEL = "q_hampel", "Q/Hampel (ISO 13528 Q method and Hampel estimator)"
     DERSIMONIAN_LAIRD = "dersimonian_laird", "Random effects (DerSimonian–Laird)"
 
 

@@ -491,9 +491,13 @@ def _rows(
     return tuple(results), tuple(scores)
 
 
+# Stored method names (the core's) that differ from the comparison setting they come from
+_SETTING_OF = {"median_made": AssignedValueMethod.MEDIAN}
+
+
 def method_label(method: str) -> str:
     try:
-        return str(AssignedValueMethod(method).label)
+        return str(AssignedValueMethod(_SETTING_OF.get(method, method)).label)
     except ValueError:
         return method.replace("_", " ")
 

@@ -35,7 +35,8 @@ class Command(BaseCommand):
             "--assigned",
             default="weighted-mean",
             help="reference:<LAB> | nominal:<value>:<tolerance>[%%][:rect|:normal] | "
-            "weighted-mean (default) | algorithm-a | median | dersimonian-laird",
+            "weighted-mean (default) | algorithm-a | median (MADe) | median-niqr | q-hampel | "
+            "dersimonian-laird",
         )
         parser.add_argument(
             "--compare", action="append", default=[], choices=FACTORS,
