@@ -25,6 +25,7 @@ from analysis.core.assigned import sigma_pt_prescribed
 from analysis.core.consistency import stability_check
 from analysis.core.groups import Groups
 from analysis.core.homogeneity import expanded_criterion_factors, homogeneity
+from analysis.core.qhampel import q_method_scale
 from analysis.core.robust import algorithm_a, algorithm_s, median_made, median_niqr, q_hampel
 from analysis.core.scores import compute_scores
 
@@ -182,9 +183,11 @@ def test_e3_median_niqr_made_and_algorithm_a() -> None:
 
 def test_e3_q_hampel() -> None:
     """Table E.5, row Q/Hampel: x* = 0.2600, s* = 0.0426, u(x_pt) = 1.25 s*/sqrt(p) =
-    0.0091 (the Q method with the standard's interpolation, H1(0) = 6/561 here: three
-    pairs of tied results)."""
+    0.0091 (the Q method with the standard's interpolation; H1(0) = 3/561 here: the
+    results 0.230, 0.274 and 0.287 are each reported twice)."""
     av = q_hampel(*one(E3))
+    rows = np.sort(np.asarray(E3))[None, :]
+    assert q_method_scale(rows, np.array([34]))[1][0] == 3 / 561
     printed(av.value[0], 0.2600, 4)
     printed(av.diagnostics["s_star"][0], 0.0426, 4)
     printed(av.standard_uncertainty[0], 0.0091, 4)
