@@ -329,6 +329,8 @@ class _Import:
                     r.coverage_factor,
                     r.dof,
                     r.note,
+                    r.repeat_sd,
+                    r.n_repeats,
                 )
                 for r, p, i in zip(rows, parts, points, strict=True)
             ]

@@ -25,10 +25,12 @@ GRID_COLUMNS: dict[str, tuple[str, str, int]] = {
     "expanded_uncertainty": ("Expanded uncertainty U", "U", 40),
     "coverage_factor": ("Coverage factor k", "k", 20),
     "dof": ("Degrees of freedom", "dof", 20),
+    "repeat_sd": ("Standard deviation of the repeats", "s", 40),
+    "n_repeats": ("Number of repeats", "n", 20),
     "note": ("Note", "Note", 500),
 }
 #: A row with none of these filled in is left out (a partial draft is allowed).
-CONTENT_COLUMNS = ("sensitivity", "expanded_uncertainty", "dof", "note")
+CONTENT_COLUMNS = ("sensitivity", "expanded_uncertainty", "dof", "repeat_sd", "n_repeats", "note")
 DEFAULT_K = "2"
 
 
@@ -64,7 +66,8 @@ class GridRow:
 
 
 class ResultGridForm(forms.Form):
-    """One row per measurement point: sensitivity, U (absolute or ``1.5%``), k, dof, note."""
+    """One row per measurement point: sensitivity, U (absolute or ``1.5%``), k, dof, the
+    optional repeatability (repeat_sd with n_repeats), note."""
 
     def __init__(
         self,
@@ -103,6 +106,8 @@ class ResultGridForm(forms.Form):
             initial[self.key(i, "expanded_uncertainty")] = _number(result.expanded_uncertainty)
             initial[self.key(i, "coverage_factor")] = _number(result.coverage_factor)
             initial[self.key(i, "dof")] = _number(result.dof)
+            initial[self.key(i, "repeat_sd")] = _number(result.repeat_sd)
+            initial[self.key(i, "n_repeats")] = _number(result.n_repeats)
             initial[self.key(i, "note")] = result.note
         return initial
 

@@ -173,6 +173,14 @@ class Result(models.Model):
         db_persist=True,
     )
     dof = models.FloatField(null=True, blank=True, help_text="Effective degrees of freedom")
+    repeat_sd = models.FloatField(
+        null=True, blank=True,
+        help_text="Within-laboratory standard deviation of the repeats behind the value (their "
+        "mean), in the value's unit",
+    )  # fmt: skip
+    n_repeats = models.PositiveIntegerField(
+        null=True, blank=True, help_text="Number of repeats behind repeat_sd (>= 2)"
+    )
     note = models.CharField(max_length=500, blank=True)
 
     class Meta:
@@ -190,6 +198,11 @@ class Result(models.Model):
             ),
             models.CheckConstraint(
                 condition=Q(dof__isnull=True) | Q(dof__gt=0), name="result_dof_pos"
+            ),
+            models.CheckConstraint(
+                condition=Q(repeat_sd__isnull=True, n_repeats__isnull=True)
+                | (finite_positive("repeat_sd") & Q(n_repeats__gte=2)),
+                name="result_repeats_paired",
             ),
         ]
 

@@ -50,6 +50,8 @@ def comparison_result_rows(
             "coverage_factor",
             "dof",
             "note",
+            "repeat_sd",
+            "n_repeats",
         )
     )
     return [
@@ -68,6 +70,8 @@ def comparison_result_rows(
             coverage_factor=k,
             dof=dof,
             note=note,
+            repeat_sd=repeat_sd,
+            n_repeats=n_repeats,
         )
         for i, (
             code,
@@ -83,6 +87,8 @@ def comparison_result_rows(
             k,
             dof,
             note,
+            repeat_sd,
+            n_repeats,
         ) in enumerate(results, start=2)
     ]
 

@@ -288,8 +288,8 @@ def _results(submission: Submission, values: list[tuple[object, ...]]) -> int:
 
 
 def _result_values(rows: list[ResultRow], table: ComparisonTable) -> list[tuple[object, ...]]:
-    """(point id, value, unit, U, k, dof, note) of each row, on the one measurement point
-    it fits."""
+    """(point id, value, unit, U, k, dof, note, repeat_sd, n_repeats) of each row, on the
+    one measurement point it fits."""
     values = []
     for row in rows:
         # The importer already refused a row fitting no point or several: never store a guess.
@@ -302,13 +302,13 @@ def _result_values(rows: list[ResultRow], table: ComparisonTable) -> list[tuple[
         point_id = table.point_ids[matches[0]]
         values.append(
             (point_id, row.sensitivity, row.unit, row.expanded_uncertainty,
-             row.coverage_factor, row.dof, row.note)
+             row.coverage_factor, row.dof, row.note, row.repeat_sd, row.n_repeats)
         )  # fmt: skip
     return values
 
 
 RESULT_COLUMNS = ("submission", "measurement_point", "value", "unit", "expanded_uncertainty",
-                  "coverage_factor", "dof", "note")  # fmt: skip
+                  "coverage_factor", "dof", "note", "repeat_sd", "n_repeats")  # fmt: skip
 
 
 def results_insert(values: Sequence[tuple[object, ...]]) -> int:

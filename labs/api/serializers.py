@@ -184,6 +184,15 @@ class ResultRowInSerializer(serializers.Serializer):
     )
     coverage_factor = serializers.FloatField(required=False, help_text="Default 2")
     dof = serializers.FloatField(required=False, allow_null=True)
+    repeat_sd = serializers.FloatField(
+        required=False, allow_null=True,
+        help_text="Within-laboratory standard deviation (> 0, unit of sensitivity) of the "
+        "repeats whose mean is sensitivity; give n_repeats with it",
+    )  # fmt: skip
+    n_repeats = serializers.IntegerField(
+        required=False, allow_null=True, min_value=2,
+        help_text="Number of repeats behind repeat_sd (whole number >= 2); give repeat_sd with it",
+    )  # fmt: skip
     note = serializers.CharField(required=False, max_length=500)
 
 
@@ -264,6 +273,8 @@ class ResultSerializer(serializers.ModelSerializer):
             "coverage_factor",
             "standard_uncertainty",
             "dof",
+            "repeat_sd",
+            "n_repeats",
             "note",
         ]
 

@@ -32,6 +32,7 @@ from .validate import (
     _error_order,
     _frequency,
     _lab,
+    _n_repeats,
     _note,
     _RowCheck,
     _uncertainty,
@@ -39,6 +40,7 @@ from .validate import (
     cells_to_record,
     find_duplicates,
     magnitude_problems,
+    repeat_problems,
 )
 from .values import (
     CANONICAL_UNIT,
@@ -62,6 +64,7 @@ _NUMBERS: dict[str, tuple[bool, bool]] = {
     "sensitivity": (True, False),
     "coverage_factor": (False, False),
     "dof": (False, True),
+    "repeat_sd": (False, False),
 }
 
 
@@ -224,6 +227,7 @@ def field_checks(context: TableContext | None, lab_column: LabColumn) -> list[Fi
         ("expanded_uncertainty", "number", _uncertainty, None),
         ("lab", "text", lambda c: _lab(c, lab_column), None),
         ("note", "text", _note, None),
+        ("n_repeats", "text", _n_repeats, None),
     ]
     for field, (required, allow_inf) in _NUMBERS.items():
         check = functools.partial(_number, field=field, required=required, allow_inf=allow_inf)
@@ -303,7 +307,7 @@ def _assemble(
     """A :class:`ResultRow` per good row, with the measurement-point check."""
     fields = ("device", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2",
               "sensitivity", "unit", "expanded_uncertainty", "coverage_factor", "dof", "lab",
-              "note")  # fmt: skip
+              "note", "repeat_sd", "n_repeats")  # fmt: skip
     table = zip(v.numbers, v.bad, *(values[f] for f in fields), strict=True)
     check_points = context is not None and context.points is not None
     rows = []
@@ -311,22 +315,27 @@ def _assemble(
     for number, bad, *cells in table:
         if bad:
             continue
-        device, axis, freq, bench, direction, amp, sens, unit, u, k, dof, lab, note = cells
+        device, axis, freq, bench, direction, amp, sens, unit, u, k, dof, lab, note, sd, n = cells
         expanded = u
         if type(u) is tuple:  # from the precise check: (value, given in %)
             expanded = sens * u[0] / 100 if u[1] else u[0]
-        original_unit = None
+        original_unit, given = None, sens
         if unit == MG_PER_LSB:
             # The relative uncertainty is kept through the inversion (domain.md §2).
             converted = mg_per_lsb_to_canonical(sens)
             expanded, sens = converted * expanded / sens, converted
             unit, original_unit = CANONICAL_UNIT, MG_PER_LSB
         k = DEFAULT_COVERAGE_FACTOR if k is None else k
-        if not (_MIN <= sens <= _MAX and _MIN <= expanded <= _MAX and _MIN <= expanded / k <= _MAX):
-            v.note(number, magnitude_problems(sens, expanded, k, original_unit))
+        paired: list[tuple[str, str]] = []
+        if sd is not None or n is not None:
+            sd, paired = repeat_problems(sd, n, sens, given, original_unit)  # type: ignore[arg-type]
+        if paired or not (
+            _MIN <= sens <= _MAX and _MIN <= expanded <= _MAX and _MIN <= expanded / k <= _MAX
+        ):
+            v.note(number, magnitude_problems(sens, expanded, k, original_unit) + paired)
             continue
         row = _result_row(number, device, axis, freq, bench, direction, amp, sens, unit,
-                          expanded, k, dof, lab, note, original_unit)  # fmt: skip
+                          expanded, k, dof, lab, note, original_unit, sd, n)  # fmt: skip
         if check_points and len(context.matching_points(row)) != 1:  # type: ignore[union-attr]
             check = _RowCheck({}, number, v.decimal_comma)
             _check_point(check, row, context)

@@ -26,6 +26,8 @@ COLUMNS = (
     "expanded_uncertainty",
     "coverage_factor",
     "dof",
+    "repeat_sd",
+    "n_repeats",
     "note",
 )
 REQUIRED_COLUMNS = (
@@ -44,6 +46,8 @@ DIRECTIONS_BY_BENCH: Mapping[str, tuple[str, ...]] = {
     "curvilinear": ("tangential", "radial"),
 }
 NOTE_MAX_CHARS = 500
+#: The most repeats ``n_repeats`` may count (a whole number, stored as a 32-bit integer).
+MAX_REPEATS = 1_000_000_000
 DEFAULT_COVERAGE_FACTOR = 2.0
 
 
@@ -60,9 +64,12 @@ class PointKey(NamedTuple):
 
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ResultRow:
-    """One validated result; ``sensitivity`` and ``expanded_uncertainty`` are in ``unit``.
+    """One validated result; ``sensitivity``, ``expanded_uncertainty`` and ``repeat_sd``
+    are in ``unit``.
 
     ``original_unit`` is the unit the lab wrote when it was converted (``mg/LSB``).
+    ``repeat_sd`` and ``n_repeats`` (both or neither) are the within-laboratory standard
+    deviation of the repeats behind ``sensitivity`` (their mean) and their number.
     """
 
     row: int
@@ -80,6 +87,8 @@ class ResultRow:
     lab: str | None = None
     note: str = ""
     original_unit: str | None = None
+    repeat_sd: float | None = None
+    n_repeats: int | None = None
 
     @property
     def standard_uncertainty(self) -> float:

@@ -152,9 +152,14 @@ def _cell(value: object) -> object:
     return escape_text(str(value))
 
 
+#: Columns a default download leaves out when no row has a value there: a table without
+#: labs or repeatability data reads as it did before these columns existed.
+_OPTIONAL_OUT = ("lab", "repeat_sd", "n_repeats")
+
+
 def _default_columns(records: Sequence[Mapping[str, object]]) -> list[str]:
-    has_lab = any(record.get("lab") not in (None, "") for record in records)
-    return [c for c in COLUMNS if c != "lab" or has_lab]
+    present = {c for c in _OPTIONAL_OUT if any(r.get(c) not in (None, "") for r in records)}
+    return [c for c in COLUMNS if c not in _OPTIONAL_OUT or c in present]
 
 
 def write_table(
@@ -167,10 +172,10 @@ def write_table(
 ) -> bytes:
     """Write a results table (downloads, templates) that :func:`parse_table` reads back.
 
-    ``columns`` defaults to every column of formats.md §1, ``lab`` only when a
-    row has one; mappings may carry other columns (scores). Numbers are written
-    in full precision with a decimal point; text loses its control characters,
-    then formula-like text gets a leading quote (:func:`~.values.escape_text`).
+    ``columns`` defaults to every column of formats.md §1, ``lab``, ``repeat_sd`` and
+    ``n_repeats`` only when a row has one; mappings may carry other columns (scores).
+    Numbers are written in full precision with a decimal point; text loses its control
+    characters, then formula-like text gets a leading quote (:func:`~.values.escape_text`).
     CSV is UTF-8 with a BOM (for spreadsheets) unless ``bom=False``.
     """
     records = [r.as_record() if isinstance(r, ResultRow) else dict(r) for r in rows]

@@ -13,6 +13,7 @@ from .schema import (
     COLUMNS,
     DEFAULT_COVERAGE_FACTOR,
     DIRECTIONS,
+    MAX_REPEATS,
     NOTE_MAX_CHARS,
     REQUIRED_COLUMNS,
     LabColumn,
@@ -289,6 +290,59 @@ def _number(
     return check.number(field, required=required, allow_inf=allow_inf)
 
 
+def _n_repeats(check: _RowCheck) -> int | None:
+    """The number of repeats behind ``repeat_sd``: a whole number from 2 to MAX_REPEATS
+    (read as the other numbers are: ASCII digits, finite, > 0)."""
+    value = check.number("n_repeats")
+    if value is None:
+        return None
+    if value != int(value) or not 2 <= value <= MAX_REPEATS:
+        check.fail(
+            "n_repeats",
+            f"must be a whole number from 2 to {MAX_REPEATS:,} (the repeats behind "
+            f"repeat_sd), got {display(check.raw('n_repeats'))}",
+        )
+        return None
+    return int(value)
+
+
+def repeat_problems(
+    repeat_sd: float | None,
+    n_repeats: int | None,
+    sensitivity: float,
+    given_sensitivity: float,
+    original_unit: str | None,
+) -> tuple[float | None, list[tuple[str, str]]]:
+    """``repeat_sd`` in the row's unit and the problems of the pair: both or neither is
+    given; converted from mg/LSB it keeps its relative size (as U does) and must still be
+    within the range the statistics can carry."""
+    if (repeat_sd is None) != (n_repeats is None):
+        missing, given = (
+            ("n_repeats", "repeat_sd") if n_repeats is None else ("repeat_sd", "n_repeats")
+        )
+        return None, [
+            (
+                missing,
+                f"is required when {given} is given: the within-laboratory "
+                "standard deviation and its number of repeats go together",
+            )
+        ]
+    if repeat_sd is None:
+        return None, []
+    if original_unit:
+        repeat_sd = sensitivity * repeat_sd / given_sensitivity
+        if not in_range(repeat_sd):
+            return None, [
+                (
+                    "repeat_sd",
+                    f"is {repeat_sd:.6g} after the conversion from "
+                    f"{original_unit}; it must be {RANGE_TEXT} (the range "
+                    "the statistics can carry)",
+                )
+            ]
+    return repeat_sd, []
+
+
 def magnitude_problems(
     sensitivity: float, expanded: float, k: float, original_unit: str | None
 ) -> list[tuple[str, str]]:
@@ -349,6 +403,8 @@ def validate_record(
     uncertainty = run(_uncertainty)
     coverage = run(_number, "coverage_factor")
     dof = run(_number, "dof", False, True)
+    repeat_sd = run(_number, "repeat_sd")
+    n_repeats = run(_n_repeats)
     lab = run(_lab, lab_column)
     note = run(_note)
     if check.errors:
@@ -357,14 +413,16 @@ def validate_record(
     assert uncertainty is not None and note is not None
     value, relative = uncertainty
     expanded = sensitivity * value / 100 if relative else value
-    original_unit = None
+    original_unit, given_sensitivity = None, sensitivity
     if unit == MG_PER_LSB:
         # The relative uncertainty is kept through the inversion (domain.md §2).
         converted = mg_per_lsb_to_canonical(sensitivity)
         expanded, sensitivity = converted * expanded / sensitivity, converted
         unit, original_unit = CANONICAL_UNIT, MG_PER_LSB
     k = DEFAULT_COVERAGE_FACTOR if coverage is None else coverage
-    for field, message in magnitude_problems(sensitivity, expanded, k, original_unit):
+    sd, paired = repeat_problems(repeat_sd, n_repeats, sensitivity, given_sensitivity,
+                                 original_unit)  # fmt: skip
+    for field, message in magnitude_problems(sensitivity, expanded, k, original_unit) + paired:
         check.fail(field, message)
     if check.errors:
         return check.errors
@@ -374,6 +432,7 @@ def validate_record(
         expanded_uncertainty=expanded,
         coverage_factor=k,
         dof=dof, lab=lab, note=note, original_unit=original_unit,
+        repeat_sd=sd, n_repeats=n_repeats,
     )  # fmt: skip
     _check_point(check, result, context)
     return check.errors or result

@@ -49,6 +49,8 @@ FIELDS = {
     "expanded_uncertainty": NUMBERS,
     "coverage_factor": NUMBERS,
     "dof": NUMBERS,
+    "repeat_sd": st.one_of(st.sampled_from(["", "0.3", "0,3", "1e-31"]), NUMBERS),
+    "n_repeats": st.one_of(st.sampled_from(["", "3", "2.0", "1", "2.5", "1e10"]), NUMBERS),
     "lab": st.sampled_from(["", "L01", "L02", None, " "]),
     "note": st.sampled_from(["", "ok", "x" * 501, "'=x", " mounted "]),
 }  # fmt: skip
@@ -84,7 +86,11 @@ CONTEXTS = [
     ),
 ]
 RECORD = st.fixed_dictionaries({}, optional=FIELDS)
-VALID_RECORD = st.fixed_dictionaries(VALID, optional={"lab": FIELDS["lab"]})
+REPEATS = {
+    "repeat_sd": st.sampled_from(["0.3", 0.02, "1e-29"]),
+    "n_repeats": st.sampled_from(["3", 5]),
+}
+VALID_RECORD = st.fixed_dictionaries(VALID, optional={"lab": FIELDS["lab"], **REPEATS})
 OPTIONS = st.fixed_dictionaries(
     {
         "decimal_comma": st.booleans(),

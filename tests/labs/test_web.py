@@ -269,6 +269,6 @@ def test_pages_have_viewport_and_labelled_inputs(client, world):
     body = visible(client.get(reverse("labs:grid", args=["CMP-A"])))
     assert 'name="viewport"' in body
     ids = re.findall(r'<input type="text" name="[^"]+" id="([^"]+)"', body)
-    assert len(ids) == 4 * 5
+    assert len(ids) == 4 * 7  # 4 points x (sensitivity, U, k, dof, repeat_sd, n_repeats, note)
     for input_id in ids:
         assert f'<label class="visually-hidden" for="{input_id}">' in body
