@@ -18,6 +18,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
+from analysis import consistency
 from analysis.offline_json import CHUNK, json_parts
 from analysis.pipeline import (
     Analysis,
@@ -104,7 +105,8 @@ def _umask() -> int:
 
 def csv_parts(analysis: Analysis) -> Iterator[str]:
     """Scores joined with their point's assigned value, one row per result; the
-    compatibility matrices follow after one blank line in long form (one row per pair).
+    compatibility matrices follow after one blank line in long form (one row per pair),
+    then after another the consistency tests in long form.
     Cells as :func:`labs.importers.write_table` writes them (full precision, text escaped
     against formula execution), built a column and a chunk at a time."""
     buffer = io.StringIO(newline="")
@@ -127,6 +129,16 @@ def csv_parts(analysis: Analysis) -> Iterator[str]:
     pairs = _matrix_pairs(compatibility_records(analysis.compatibility), limits)
     if pairs:
         yield "\n" + write_table(pairs, columns=MATRIX_COLUMNS, bom=False).decode()
+    yield consistency_csv(consistency.consistency_records(analysis))
+
+
+def consistency_csv(records: list[dict[str, Any]]) -> str:
+    """The consistency tests in long form (``analysis.consistency.csv_rows``), after one
+    blank line like the matrices."""
+    rows = consistency.csv_rows(records)
+    if not rows:
+        return ""
+    return "\n" + write_table(rows, columns=consistency.CSV_COLUMNS, bom=False).decode()
 
 
 def _score_table(analysis: Analysis) -> tuple[list[np.ndarray], np.ndarray]:
@@ -286,6 +298,8 @@ def render_table(doc: dict[str, list[dict[str, Any]]]) -> str:
             for i, lvl in enumerate(levels)
         ]
         parts.append(_table(["level", "mean", "U(k=2)", *[f"En vs {v}" for v in levels]], rows))
+    parts += ["", "CONSISTENCY (ISO 5725-2: straggler beyond the 5 % and outlier beyond the 1 % "
+              "critical value)", _table(*consistency.table_lines(doc["consistency"]))]  # fmt: skip
     return "\n".join(parts) + "\n"
 
 

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.consistency import consistency_records
 from analysis.core import assigned as av
 from analysis.core import robust
 from analysis.core.compatibility import CompatibilityMatrix, compatibility_matrices
@@ -46,6 +47,8 @@ class ResultTable:
     value: FloatArray
     expanded_uncertainty: FloatArray
     coverage_factor: FloatArray
+    repeat_sd: FloatArray  # NaN where the laboratory gave no repeat data
+    n_repeats: np.ndarray  # integers, 0 where the laboratory gave no repeat data
 
     @classmethod
     def from_rows(cls, rows: Sequence[ResultRow]) -> ResultTable:
@@ -62,6 +65,8 @@ class ResultTable:
             value=col("sensitivity", np.float64),
             expanded_uncertainty=col("expanded_uncertainty", np.float64),
             coverage_factor=col("coverage_factor", np.float64),
+            repeat_sd=np.array([r.repeat_sd or np.nan for r in rows], dtype=np.float64),
+            n_repeats=np.array([r.n_repeats or 0 for r in rows], dtype=np.int64),
         )
 
     @property
@@ -441,6 +446,7 @@ def to_json(analysis: Analysis, *, scores: bool = True) -> dict[str, list[dict[s
         "assigned_values": assigned_records(analysis),
         "scores": score_records(analysis) if scores else [],
         "compatibility": compatibility_records(analysis.compatibility),
+        "consistency": consistency_records(analysis),
     }
 
 

@@ -6,7 +6,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from django.db.models import Count, QuerySet
+from django.db.models import Count, QuerySet, Value
+from django.db.models.functions import Coalesce
 
 from analysis.bulk import read_columns
 from analysis.core.assigned import EXACT_MAX  # noqa: F401  (re-exported for the results page)
@@ -26,7 +27,14 @@ _RESULT_COLUMNS = (
     ("value", "f8"),
     ("expanded_uncertainty", "f8"),
     ("coverage_factor", "f8"),
+    ("repeat_sd_or_0", "f8"),  # read NOT NULL (``read_columns``): 0 where none is given
+    ("n_repeats_or_0", "i8"),
 )
+#: repeat_sd > 0 and n_repeats >= 2 where given (a CHECK constraint): 0 stands for none.
+_REPEATS = {
+    "repeat_sd_or_0": Coalesce("repeat_sd", Value(0.0)),
+    "n_repeats_or_0": Coalesce("n_repeats", Value(0)),
+}
 
 
 @dataclass(frozen=True)
@@ -99,18 +107,21 @@ def load_round(
             measurement_point_id__gte=first_point_id, measurement_point_id__lte=last_point_id
         )
     names, kinds = zip(*_RESULT_COLUMNS, strict=True)
-    rid, pid, sub, value, big_u, k = read_columns(qs.order_by().values_list(*names), kinds)
+    rows = qs.order_by().annotate(**_REPEATS).values_list(*names)
+    rid, pid, sub, value, big_u, k, sd, n_rep = read_columns(rows, kinds)
     part = sub_participants[np.searchsorted(sub_ids, sub)]
     codes, is_ref, sorted_ids, rank_of_sorted = _participants(comparison)
     lab = rank_of_sorted[np.searchsorted(sorted_ids, part)]
     order = np.lexsort((lab, pid))
-    rid, pid, lab, value, big_u, k = (a[order] for a in (rid, pid, lab, value, big_u, k))
+    rid, pid, lab, value, big_u, k, sd, n_rep = (
+        a[order] for a in (rid, pid, lab, value, big_u, k, sd, n_rep)
+    )
     point_ids, index = np.unique(pid, return_inverse=True)
     by_id = MeasurementPoint.objects.select_related("device").in_bulk(point_ids.tolist())
     points = [by_id[int(i)] for i in point_ids]
     index = index.reshape(-1)
     return LoadedRound(
-        table=_table(points, index, codes[lab], value, big_u, k),
+        table=_table(points, index, codes[lab], value, big_u, k, (sd, n_rep)),
         result_id=rid,
         is_reference=is_ref[lab],
         groups=Groups.from_index(index, point_ids.size),
@@ -133,7 +144,7 @@ def _participants(comparison: Comparison) -> tuple[np.ndarray, np.ndarray, np.nd
 
 def _table(
     points: list[MeasurementPoint], index: np.ndarray, lab: np.ndarray, value: np.ndarray,
-    big_u: np.ndarray, k: np.ndarray,
+    big_u: np.ndarray, k: np.ndarray, repeats: tuple[np.ndarray, np.ndarray],
 ) -> ResultTable:  # fmt: skip
     def per_point(get: Any, dtype: Any = np.str_) -> np.ndarray:
         return np.array([get(p) for p in points], dtype=dtype)[index]
@@ -148,6 +159,8 @@ def _table(
         value=value,
         expanded_uncertainty=big_u,
         coverage_factor=k,
+        repeat_sd=np.where(repeats[1] >= 2, repeats[0], np.nan),
+        n_repeats=repeats[1],
     )
 
 

@@ -164,6 +164,34 @@ def cell_statistics(x: ArrayLike, lab: ArrayLike, groups: Groups) -> Cells:
     return Cells(ids // n_labs, ids % n_labs, n, mean, sd, groups.n_groups)
 
 
+def cells_from_summaries(
+    mean: ArrayLike, sd: ArrayLike, n: ArrayLike, lab: ArrayLike, groups: Groups
+) -> Cells:
+    """Cells given by their summaries, ISO 5725-2 §7.1: one entry per laboratory and group
+    with the cell mean, the within-cell standard deviation (ddof = 1) and the number of
+    replicates behind them; ``n`` = 1 with ``sd`` = 0 where a laboratory reports its mean
+    only.  (A results table carries a laboratory's mean with its repeatability, not its
+    replicates.)"""
+    m, s = as_finite("mean", mean), as_finite("sd", sd)
+    nn = np.asarray(n, dtype=np.float64).reshape(-1)
+    labs = np.asarray(lab, dtype=np.intp).reshape(-1)
+    if not m.size == s.size == nn.size == labs.size == groups.size:
+        raise CoreInputError(f"mean, sd, n, lab and groups must have the same length ({m.size})")
+    if np.any(s < 0) or not np.all((nn >= 1) & (nn == np.round(nn))):
+        raise CoreInputError("sd must be >= 0 and n integers >= 1")
+    if np.any((nn == 1) & (s != 0)):
+        raise CoreInputError("a cell of one replicate has no standard deviation (sd must be 0)")
+    if labs.size and labs.min() < 0:
+        raise CoreInputError("lab index must be >= 0")
+    empty = np.flatnonzero(groups.counts() == 0)
+    if empty.size:
+        raise CoreInputError(f"group(s) {empty[:10].tolist()} have no results")
+    key = groups.index * (int(labs.max()) + 1 if labs.size else 1) + labs
+    if np.unique(key).size != key.size:
+        raise CoreInputError("each laboratory may have one cell per group")
+    return Cells(groups.index, labs, nn.astype(np.intp), m, s, groups.n_groups)
+
+
 def _cell_mode(cells: Cells, mask: BoolArray) -> IntArray:
     """Per group, the cell size that occurs most often among ``mask`` cells (smallest on a
     tie): the n used for the critical values of k and C with unbalanced cells."""
@@ -246,7 +274,12 @@ def mandel(x: ArrayLike, lab: ArrayLike, groups: Groups) -> Mandel:
     h_i = (ybar_i - ybar) / s(ybar_i) over the p cell means of a group; k_i = s_i sqrt(p)/
     sqrt(sum s_j^2) over the cells with n >= 2.  Codes compare |h| and k with the
     critical values of :func:`mandel_h_critical` / :func:`mandel_k_critical`."""
-    cells = cell_statistics(x, lab, groups)
+    return mandel_cells(cell_statistics(x, lab, groups))
+
+
+def mandel_cells(cells: Cells) -> Mandel:
+    """:func:`mandel` from cell statistics (:func:`cell_statistics` or
+    :func:`cells_from_summaries`), ISO 5725-2 §7.3.2."""
     h, p, deg_h = _mandel_h(cells)
     k, k_cell, p_k, deg_k = _mandel_k(cells)
     n = _cell_mode(cells, k_cell)
@@ -388,7 +421,12 @@ def cochran(x: ArrayLike, lab: ArrayLike, groups: Groups) -> Cochran:
     measurement point, from replicate results (flat ``x``, laboratory and group index).
     With unbalanced cells the standard's rule of thumb is followed: n = the cell size
     occurring most often."""
-    cells = cell_statistics(x, lab, groups)
+    return cochran_cells(cell_statistics(x, lab, groups))
+
+
+def cochran_cells(cells: Cells) -> Cochran:
+    """:func:`cochran` from cell statistics (:func:`cell_statistics` or
+    :func:`cells_from_summaries`), ISO 5725-2 §7.2.3."""
     used = cells.n >= 2
     g = cells.groups
     var = np.where(used, cells.sd**2, -1.0)

@@ -328,7 +328,7 @@ def _assemble(
         k = DEFAULT_COVERAGE_FACTOR if k is None else k
         paired: list[tuple[str, str]] = []
         if sd is not None or n is not None:
-            sd, paired = repeat_problems(sd, n, sens, given, original_unit)  # type: ignore[arg-type]
+            sd, paired = repeat_problems(sd, n, sens, given, original_unit)
         if paired or not (
             _MIN <= sens <= _MAX and _MIN <= expanded <= _MAX and _MIN <= expanded / k <= _MAX
         ):

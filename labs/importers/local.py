@@ -55,8 +55,9 @@ class LocalTable:
     """The validated results, one entry per result in every array, in file order.
 
     Text columns are numpy ``str_`` arrays (as ``np.array([...], dtype=np.str_)`` of the
-    rows' values); ``amplitude_m_s2`` is NaN where none was given. ``sensitivity`` and
-    ``expanded_uncertainty`` are after the conversions of an upload (``%``, ``mg/LSB``).
+    rows' values); ``amplitude_m_s2`` and ``repeat_sd`` are NaN, ``n_repeats`` 0, where
+    none was given. ``sensitivity``, ``expanded_uncertainty`` and ``repeat_sd`` are after
+    the conversions of an upload (``%``, ``mg/LSB``).
     """
 
     row: np.ndarray
@@ -70,6 +71,8 @@ class LocalTable:
     sensitivity: np.ndarray
     expanded_uncertainty: np.ndarray
     coverage_factor: np.ndarray
+    repeat_sd: np.ndarray
+    n_repeats: np.ndarray
 
     def __len__(self) -> int:
         return int(self.row.size)
@@ -129,6 +132,8 @@ class _Codes:
 #: Text columns of the measurement point (and the unit, which goes with the device): a
 #: round repeats few combinations of them, so each row's combination is looked up once.
 _POINT_TEXT = ("device", "axis", "frequency_hz", "bench", "direction", "unit")
+#: Other columns checked once per distinct cell (``n_repeats``: a whole number, few values).
+_CODED = ("lab", "note", "n_repeats")
 
 
 class _Plain:
@@ -192,7 +197,7 @@ class _Plain:
         except ImportErrors:
             raise _NotPlain from None
         self.point_names = [n for n in self.names if n in _POINT_TEXT]
-        self.texts = {n: _Codes() for n in self.names if n in ("lab", "note")}
+        self.texts = {n: _Codes() for n in self.names if n in _CODED}
         self.numbers = {n: [] for n in self.names if self.checks[n][0] == "number"}
 
     def _decoded(self, block: bytes) -> tuple[str, int]:
@@ -271,7 +276,7 @@ class _Plain:
         return out
 
     def _text(self, name: str) -> tuple[list[object], np.ndarray]:
-        """Lab or note: checked values per distinct cell and each row's code."""
+        """Lab, note or n_repeats: checked values per distinct cell and each row's code."""
         codes = self.texts.get(name)
         if codes is None:  # an absent column: one blank cell stands for every row
             return self._checked(name, [None]), np.zeros(self.n_rows, np.int64)
@@ -283,6 +288,16 @@ class _Plain:
         (value,) = self._checked(name, [None])
         return np.full(self.n_rows, np.nan if value is None else value)
 
+    def _repeats(self) -> tuple[np.ndarray, np.ndarray]:
+        """repeat_sd (NaN where none) and n_repeats (0 where none); a row with one and not
+        the other sends the file to the importer, which names the missing column."""
+        repeat_sd = self._number("repeat_sd")
+        values, codes = self._text("n_repeats")
+        n_repeats = np.array([0 if v is None else v for v in values], np.int64)[codes]
+        if not np.array_equal(np.isnan(repeat_sd), n_repeats == 0):
+            raise _NotPlain
+        return repeat_sd, n_repeats
+
     def _assemble(self) -> LocalTable:
         """The row-level steps of ``validate_columns`` on whole columns."""
         point, at = self._point_values(), self.points.all_codes()
@@ -293,14 +308,18 @@ class _Plain:
         if "expanded_uncertainty" in self.numbers:
             relative = np.concatenate(self.relative)
             expanded = np.where(relative, sensitivity * expanded / 100, expanded)
+        repeat_sd, n_repeats = self._repeats()
         mg = np.array([u == MG_PER_LSB for u in point["unit"]], bool)[at]
         if mg.any():  # as an upload: the relative uncertainty is kept through the inversion
             converted = _mg_per_lsb(sensitivity[mg])  # the same arithmetic on an array
             expanded[mg] = converted * expanded[mg] / sensitivity[mg]
+            repeat_sd[mg] = converted * repeat_sd[mg] / sensitivity[mg]
             sensitivity[mg] = converted
         k = self._number("coverage_factor")
         k = np.where(np.isnan(k), DEFAULT_COVERAGE_FACTOR, k)
         if not (_in_range(sensitivity) & _in_range(expanded) & _in_range(expanded / k)).all():
+            raise _NotPlain
+        if not _in_range(repeat_sd[n_repeats > 0]).all():
             raise _NotPlain
         table = LocalTable(
             row=np.arange(2, 2 + self.n_rows, dtype=np.int64),
@@ -313,6 +332,8 @@ class _Plain:
             sensitivity=sensitivity,
             expanded_uncertainty=expanded,
             coverage_factor=k,
+            repeat_sd=repeat_sd,
+            n_repeats=n_repeats,
         )
         names = ("device", "axis", "bench", "direction")
         keys = [  # what validate._duplicate_key takes of the point, per combination
@@ -408,12 +429,15 @@ def _row_columns(rows: list[ResultRow]) -> dict[str, np.ndarray]:
         "sensitivity": col("sensitivity", np.float64),
         "expanded_uncertainty": col("expanded_uncertainty", np.float64),
         "coverage_factor": col("coverage_factor", np.float64),
+        "repeat_sd": np.array([r.repeat_sd or np.nan for r in rows], np.float64),
+        "n_repeats": np.array([r.n_repeats or 0 for r in rows], np.int64),
     }
 
 
 def _concat(parts: list[dict[str, np.ndarray]], name: str) -> np.ndarray:
     if not parts:
-        return np.array([], dtype=np.str_ if name in _TEXT_FIELDS else np.float64)
+        kind = np.str_ if name in _TEXT_FIELDS else np.int64 if name == "n_repeats" else np.float64
+        return np.array([], dtype=kind)
     return np.concatenate([p[name] for p in parts])
 
 

@@ -219,12 +219,14 @@ def test_table_and_csv_output(tmp_path):
     call_command(
         "pt_compare", str(src), "--compare", "bench", "--format", "csv", "--output", str(target)
     )
-    scores, pairs = target.read_text().split("\n\n")
+    scores, pairs, consistency = target.read_text().split("\n\n")
     assert len(list(csv.DictReader(StringIO(scores)))) == 18
     long_form = list(csv.DictReader(StringIO(pairs)))
     assert len(long_form) == 9
     mems1y = next(r for r in long_form if r["group"] == "device=MEMS 1, axis=Y")
     assert float(mems1y["en"]) == pytest.approx(3 / math.sqrt(265), rel=1e-12)
+    tests = {r["test"] for r in csv.DictReader(StringIO(consistency))}  # two labs: n/a rows
+    assert tests == {"grubbs_single", "grubbs_double", "cochran", "mandel_h", "mandel_k"}
 
 
 def test_csv_output_escapes_formula_like_cells(tmp_path):
@@ -282,7 +284,7 @@ def test_stdout_is_the_json_and_nothing_else(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert proc.stderr == ""
     doc = json.loads(proc.stdout)
-    assert set(doc) == {"assigned_values", "scores", "compatibility"}
+    assert set(doc) == {"assigned_values", "scores", "compatibility", "consistency"}
     assert proc.stdout.count("\n") == 1  # compact by default
     assert doc == run(str(table1_csv(tmp_path)), "--compare", "bench")
 

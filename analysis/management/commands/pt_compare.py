@@ -124,4 +124,6 @@ def result_table(table: LocalTable) -> ResultTable:
         value=table.sensitivity,
         expanded_uncertainty=table.expanded_uncertainty,
         coverage_factor=table.coverage_factor,
+        repeat_sd=table.repeat_sd,
+        n_repeats=table.n_repeats,
     )
