@@ -270,6 +270,8 @@ def verdict_text(test: dict[str, Any], *, who: bool = True) -> str:
         return f"{NA}: {test['reason']}"
     if test["verdict"] == "correct" or not who:
         return str(test["verdict"])
+    if "high" not in test and "labs" not in test:  # Mandel: the laboratories say more
+        return str(test["verdict"])
     if "labs" in test:  # Cochran
         c = statistic_text(test["statistic"])
         return f"{test['verdict']}: {', '.join(test['labs'])} (C = {c})"
@@ -278,6 +280,22 @@ def verdict_text(test: dict[str, Any], *, who: bool = True) -> str:
         f"{test[s]['verdict']}: {', '.join(test[s]['labs'])} {s} "
         f"(G = {statistic_text(test[s]['statistic'])})"
         for s in sides
+    )
+
+
+def detail_text(test: dict[str, Any]) -> str:
+    """A Grubbs or Cochran test's statistics with the laboratories they are about:
+    "high L04, G = 2.44; low L09, G = 0.759", "largest variance L07, C = 0.861"; or why the
+    test does not apply."""
+    if not test["applicable"]:
+        return f"{NA}: {test['reason']}"
+    if "labs" in test:
+        return (
+            f"largest variance {', '.join(test['labs'])}, C = {statistic_text(test['statistic'])}"
+        )
+    return "; ".join(
+        f"{s} {', '.join(test[s]['labs'])}, G = {statistic_text(test[s]['statistic'])}"
+        for s in ("high", "low")
     )
 
 
@@ -321,3 +339,34 @@ def table_lines(records: Sequence[dict[str, Any]]) -> tuple[list[str], list[list
         for r in records
     ]  # fmt: skip
     return headers, rows
+
+
+def signal_rows(rec: dict[str, Any]) -> list[dict[str, Any]]:
+    """The findings at one point, one per signalling side of a Grubbs test, Cochran, or
+    laboratory with a straggling or outlying h or k: ``test``, ``labs``, ``statistic``,
+    ``critical_5``, ``critical_1``, ``verdict`` (what the summary report lists)."""
+    bad = ("straggler", "outlier")
+    out = []
+    for name in TESTS:
+        t = rec[name]
+        if not t["applicable"]:
+            continue
+        crit = {"critical_5": t["critical_5"], "critical_1": t["critical_1"]}
+        if name.startswith("grubbs"):
+            out += [{"test": f"{TEST_NAMES[name]} ({side})", "labs": ", ".join(t[side]["labs"]),
+                     "statistic": t[side]["statistic"], **crit, "verdict": t[side]["verdict"]}
+                    for side in ("high", "low") if t[side]["verdict"] in bad]  # fmt: skip
+        elif name == "cochran" and t["verdict"] in bad:
+            out.append({"test": TEST_NAMES[name], "labs": ", ".join(t["labs"]),
+                        "statistic": t["statistic"], **crit, "verdict": t["verdict"]})  # fmt: skip
+        elif name.startswith("mandel"):
+            key = name[-1]
+            out += [{"test": TEST_NAMES[name], "labs": lab["lab"], "statistic": lab[key], **crit,
+                     "verdict": lab[f"{key}_flag"]}
+                    for lab in rec["labs"] if lab[f"{key}_flag"] in bad]  # fmt: skip
+    return out
+
+
+def reason_kind(reason: str) -> str:
+    """A reason without its numbers, to count points alike: "unequal numbers of repeats"."""
+    return reason.split(" (")[0]

@@ -130,7 +130,8 @@ class AnalysisChunk(models.Model):
 
 
 class AssignedValue(models.Model):
-    """x_pt and u(x_pt) of one measurement point in one run."""
+    """x_pt and u(x_pt) of one measurement point in one run, and the consistency tests there
+    (``analysis.consistency``): one row per point, written with the chunk's scores."""
 
     run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="assigned_values")
     measurement_point = models.ForeignKey(
@@ -145,6 +146,11 @@ class AssignedValue(models.Model):
         help_text="k of U(x_pt) = k·u(x_pt): 2, or the reference laboratory's own k",
     )
     diagnostics = models.JSONField(default=dict, blank=True)
+    consistency = models.JSONField(
+        default=dict, blank=True,
+        help_text="ISO 5725-2 tests at the point (Grubbs, Cochran, Mandel h and k per lab code), "
+        "as pt_compare's consistency records without the point keys",
+    )  # fmt: skip
 
     class Meta:
         ordering = ["run", "measurement_point"]

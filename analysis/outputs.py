@@ -2,7 +2,8 @@
 
 Scores go to PostgreSQL with one binary COPY assembled by numpy (``analysis.bulk``), to
 other databases with ``bulk_create`` in large batches.  Assigned values are one row per
-measurement point and compatibility matrices one row per group: small, built in Python.
+measurement point (with the point's consistency tests) and compatibility matrices one row
+per group: small, built in Python.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from analysis.bulk import Column, copy_rows, is_postgresql
+from analysis.consistency import POINT_KEYS, consistency_records
 from analysis.core.compatibility import CompatibilityMatrix as CoreMatrix
 from analysis.core.pooled import Moments
 from analysis.core.scores import FLAG_LABELS
@@ -31,6 +33,7 @@ def assigned_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[As
     diag = {k: arr for k, arr in v.diagnostics.items() if not k.startswith("_") and k != "method"}
     diag["excluded"] = np.array([*excluded_labs(a), None], dtype=object)[:-1]
     k_pt = v.coverage_factors
+    tests = stored_consistency(a)
     return [
         AssignedValue(
             run=run,
@@ -41,9 +44,16 @@ def assigned_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[As
             sigma_pt=json_value(float(a.sigma_pt[g])),
             coverage_factor=float(k_pt[g]),
             diagnostics={k: x for k, arr in diag.items() if (x := json_value(arr[g])) is not None},
+            consistency=tests[g],
         )
         for g, pid in enumerate(loaded.point_ids)
     ]
+
+
+def stored_consistency(a: Analysis) -> list[dict[str, Any]]:
+    """Per point, its consistency record without the point keys (the row names the point):
+    per-point statistics, so a chunk holding all results of its points computes them."""
+    return [{k: v for k, v in rec.items() if k not in POINT_KEYS} for rec in consistency_records(a)]
 
 
 def score_columns(run_id: int, loaded: LoadedRound, a: Analysis) -> list[Column]:

@@ -13,7 +13,7 @@ from analysis.bulk import read_columns
 from analysis.core.assigned import EXACT_MAX  # noqa: F401  (re-exported for the results page)
 from analysis.core.compatibility import compatibility_matrices
 from analysis.core.groups import Groups
-from analysis.models import AnalysisRun, CompatibilityMatrix, Score
+from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.pipeline import AssignedSpec, ResultTable, take_rows
 from labs.models import Result, Submission
 from labs.selectors import current_submissions
@@ -200,6 +200,16 @@ def current_run(comparison: Comparison) -> AnalysisRun | None:
         .order_by("-finished_at", "-pk")
         .first()
     )
+
+
+def run_consistency(run: AnalysisRun, *, signals_only: bool) -> QuerySet[AssignedValue]:
+    """The run's points with their consistency tests, in point order; ``signals_only``:
+    those where a test finds a straggler or an outlier."""
+    order = [f"measurement_point__{f}" for f in MeasurementPoint._meta.ordering]
+    found = AssignedValue.objects.filter(run=run).select_related("measurement_point__device")
+    if signals_only:
+        found = found.filter(consistency__signals=True)
+    return found.defer("diagnostics").order_by(*order)
 
 
 SCORE_FILTERS = {

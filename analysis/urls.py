@@ -4,7 +4,7 @@ participants (``lab_*`` names under ``/results/``)."""
 
 from django.urls import path
 
-from analysis import views
+from analysis import consistency_views, views
 
 C = "coordinator/<slug:code>/"
 P = "results/<slug:code>/"
@@ -30,4 +30,8 @@ for prefix, base, audience in (("", C, COORD), ("lab_", P, LAB)):
         path(base + "charts/", views.charts_page, audience, name=prefix + "charts"),
         path(base + "compatibility/", views.compatibility, audience,
              name=prefix + "compatibility"),
+        path(base + "consistency/", consistency_views.consistency, audience,
+             name=prefix + "consistency"),
+        path(base + "consistency.csv", consistency_views.consistency_download, audience,
+             name=prefix + "consistency_download"),
     ]  # fmt: skip

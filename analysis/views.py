@@ -29,6 +29,7 @@ from analysis.selectors import (
     approximate_subsets,
     current_run,
     lab_matrices,
+    run_consistency,
     run_matrices,
     run_scores,
 )
@@ -78,7 +79,7 @@ class Viewer:
 
     def nav(self) -> list[tuple[str, str, str]]:
         pages = [("results", "Assigned values"), ("scores", "Scores"), ("charts", "Charts"),
-                 ("compatibility", "Compatibility")]  # fmt: skip
+                 ("compatibility", "Compatibility"), ("consistency", "Consistency")]  # fmt: skip
         return [(page, label, self.url(page)) for page, label in pages]
 
 
@@ -152,6 +153,8 @@ def _run(request: HttpRequest, code: str, pk: int) -> AnalysisRun:
 def run_detail(request: HttpRequest, code: str, pk: int) -> HttpResponse:
     run = _run(request, code, pk)
     context = {"comparison": run.comparison, "run": run, "current": current_run(run.comparison)}
+    if run.status == R.SUCCEEDED:
+        context["n_signalling"] = run_consistency(run, signals_only=True).count()
     return render(request, "analysis/run.html", context)
 
 
