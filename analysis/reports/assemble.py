@@ -16,9 +16,11 @@ from django.contrib.auth.models import AbstractBaseUser
 
 import proficiency
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
+from analysis.reports.consistency import consistency_summary
 from analysis.reports.data import (
     PARTICIPANT,
     AssignedRow,
+    ConsistencySummary,
     DeviceInfo,
     MatrixData,
     PointInfo,
@@ -103,6 +105,7 @@ class RunContext:
     stability_rows: tuple[StabilityRow, ...]
     stats: RoundStats
     rows: tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]] | None
+    consistency: ConsistencySummary | None = None
 
 
 _CONTEXTS: OrderedDict[tuple[object, ...], RunContext] = OrderedDict()
@@ -158,6 +161,7 @@ def _build_context(run: AnalysisRun, key: tuple[object, ...]) -> RunContext:
         stability_rows=stable,
         stats=stats,
         rows=rows,
+        consistency=consistency_summary(run, index),
     )
 
 
@@ -403,6 +407,7 @@ def report_data(
         ),
         stats=context.stats,
         listing=listing,
+        consistency=context.consistency,
     )
 
 

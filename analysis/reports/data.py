@@ -126,6 +126,32 @@ class MatrixData:
 
 
 @dataclass(frozen=True)
+class ConsistencyRow:
+    """One finding of the ISO 5725-2 tests at a point: a Grubbs side, Cochran, or one
+    laboratory's Mandel h or k, with the statistic, its critical values and the verdict."""
+
+    point: int
+    test: str
+    labs: str
+    statistic: float
+    critical_5: float
+    critical_1: float
+    verdict: str
+
+
+@dataclass(frozen=True)
+class ConsistencySummary:
+    """The consistency tests of a run (``analysis.consistency``): how many points were
+    tested, at how many a test signals (``rows`` lists the findings there, in point order)
+    and, per test and reason, at how many points the test did not apply."""
+
+    n_points: int
+    n_signalling: int
+    not_applicable: tuple[tuple[str, str, int], ...]
+    rows: tuple[ConsistencyRow, ...]
+
+
+@dataclass(frozen=True)
 class SpreadRow:
     """All results at one point: their number, min / median / max and how many |En| > limit."""
 
@@ -234,6 +260,8 @@ class ReportData:
     # The summary of a large round: every result as columns (``results`` and ``scores``
     # are then empty and ``stats`` is given); None: the table lists ``results``.
     listing: ResultListing | None = None
+    # The ISO 5725-2 tests; None: the run stored none (a run older than the tests).
+    consistency: ConsistencySummary | None = None
 
     @property
     def is_participant(self) -> bool:

@@ -170,6 +170,7 @@ def story(data: ReportData) -> list[Flowable]:
     flow += sections.assigned_values(data)
     flow += sections.results_and_scores(data)
     flow += sections.matrices(data)
+    flow += sections.consistency(data)
     flow += sections.charts(data)
     flow += sections.comments(data)
     flow += [Spacer(1, 8 * mm), Paragraph(END_MARK, STYLES["end"])]

@@ -9,8 +9,15 @@ import numpy as np
 from reportlab.lib.units import mm
 from reportlab.platypus import Flowable, KeepTogether, Paragraph, Spacer, Table, TableStyle
 
+from analysis.consistency import statistic_text
 from analysis.reports import figures
-from analysis.reports.data import ReportData, ResultListing, ResultRow, ScoreRow
+from analysis.reports.data import (
+    ConsistencyRow,
+    ReportData,
+    ResultListing,
+    ResultRow,
+    ScoreRow,
+)
 from analysis.reports.styles import GRID, HEAD_BACKGROUND, OWN_BACKGROUND
 from analysis.reports.styles import STYLES as S
 from analysis.reports.tables import FastTable, cell_styles
@@ -487,8 +494,60 @@ def matrices(data: ReportData) -> list[Flowable]:
     return flow
 
 
+CONSISTENCY = (
+    "The tests of ISO 5725-2 §7 at each measurement point, on each participant's result (the "
+    "mean of its repeats): Grubbs' test for one outlying result and, where it finds no "
+    "outlier, for two; Mandel's h of each participant. Where the participants gave the "
+    "standard deviation of their repeats and their number (the same number everywhere): "
+    "Cochran's test of the largest variance and Mandel's k of each participant. A statistic "
+    "beyond its 5 % critical value marks a straggler, beyond its 1 % value an outlier (the "
+    "double Grubbs ratio is small when two results lie apart: beyond means below); "
+    "stragglers and outliers are reasons to look at a result, not to reject it. The "
+    "participants' scores above do not depend on these tests."
+)
+
+
+def consistency(data: ReportData) -> list[Flowable]:
+    """The points where an ISO 5725-2 test signals, one row per finding (domain.md §6)."""
+    flow: list[Flowable] = [para("8 Consistency of the results (ISO 5725-2)", "h1"),
+                            para(CONSISTENCY)]  # fmt: skip
+    c = data.consistency
+    if c is None:
+        return [*flow, para("This analysis run stored no consistency tests (it was made before "
+                            "they existed); a new run computes them.")]  # fmt: skip
+    flow.append(
+        para(
+            f"A test signals a straggler or an outlier at {c.n_signalling} of "
+            f"{c.n_points} measurement points" + (": listed below." if c.rows else ".")
+        )
+    )
+    if c.not_applicable:
+        text = "; ".join(f"{escape(t)} at {n} point{'s' if n != 1 else ''} ({escape(why)})"
+                         for t, why, n in c.not_applicable)  # fmt: skip
+        flow.append(para(f"<b>Not applicable:</b> {text}."))
+    if c.rows:
+        flow.append(_consistency_table(data, c.rows))
+    return flow
+
+
+def _consistency_table(data: ReportData, rows: Sequence[ConsistencyRow]) -> Table:
+    st = statistic_text
+    out = [["Device", "Point", "Test", "Lab", "Statistic", "Critical 5 % / 1 %", "Verdict"]]
+    own, bad = [], []
+    for r in rows:  # the point on every row: a point's findings may run over a page break
+        p = data.points[r.point]
+        out.append([p.device, p.label, r.test, r.labs, st(r.statistic),
+                    f"{st(r.critical_5)} / {st(r.critical_1)}", r.verdict])  # fmt: skip
+        if data.own_code and data.own_code in r.labs.split(", "):
+            own.append(len(out) - 1)
+        if r.verdict == "outlier":
+            bad.append((len(out) - 1, 6))
+    widths = [16 * mm, 44 * mm, 30 * mm, 20 * mm, 16 * mm, 28 * mm, 18 * mm]
+    return table(out, widths, own, bad)
+
+
 def charts(data: ReportData) -> list[Flowable]:
-    return [para("8 Graphs", "h1"), *figures.figures(data)]
+    return [para("9 Graphs", "h1"), *figures.figures(data)]
 
 
 def plain(text: str) -> str:
@@ -502,7 +561,7 @@ def comments(data: ReportData) -> list[Flowable]:
     n, bad = data.round.n_scores, data.round.n_bad
     conclusions = plain(data.conclusions) or "No conclusions were entered."
     return [
-        para("9 Comments and conclusions", "h1"),
+        para("10 Comments and conclusions", "h1"),
         para("Comments on performance", "h2"),
         para(plain(data.comments) or "No comments."),
         para("Conclusions", "h2"),

@@ -1,6 +1,6 @@
 """The consistency tests in the service: a run stores them per point (the offline tool's
 numbers, chunked or not), the results pages and the run page show the verdicts (labs by
-code), the CSV download has them at full precision."""
+code), the CSV download has them at full precision, the summary report lists them."""
 
 import csv
 import io
@@ -14,10 +14,13 @@ from django.core.management import call_command
 
 from analysis.consistency import POINT_KEYS
 from analysis.models import AssignedValue
+from analysis.reports.assemble import clear_run_contexts, report_data
+from analysis.reports.render import render_report
 from analysis.selectors import accepted_results
 from analysis.services import analysis_run_start
 from labs.models import Laboratory, Result
 from proficiency.models import Comparison, ComparisonStatus
+from tests.analysis.reports.conftest import pdf_text
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -164,3 +167,23 @@ def test_participants_see_the_page_after_publication_with_their_code(client, dem
     assert page.status_code == 200
     assert b'class="own-row"' in page.content
     assert client.get(f"/results/{CODE}/consistency.csv").status_code == 200
+
+
+def test_summary_report_lists_the_points_where_a_test_signals(demo, settings):
+    run = run_with(demo, settings)
+    clear_run_contexts()
+    text = "\n".join(pdf_text(render_report(report_data(run=run))))
+    _, results = _point_results(demo, 0)
+    noisy = results[3].submission.participant.code
+    section = text.split("8 Consistency of the results (ISO 5725-2)", 1)[1].split("9 Graphs")[0]
+    n = AssignedValue.objects.filter(run=run, consistency__signals=True).count()
+    flat = " ".join(section.split())
+    assert f"A test signals a straggler or an outlier at {n} of 81 measurement points" in flat
+    assert "Cochran at 79 points (no repeat data); Cochran at 1 point (unequal numbers" in flat
+    assert "Mandel k at 1 point (unequal numbers of repeats)" in flat
+    lines = section.splitlines()
+    assert "Device Point Test Lab Statistic Critical 5 % / 1 % Verdict" in lines
+    rec = stored(run)[_point_results(demo, 0)[0].pk]
+    c, c5, c1 = (f"{rec['cochran'][k]:#.3g}" for k in ("statistic", "critical_5", "critical_1"))
+    assert f"Cochran {noisy} {c} {c5} / {c1} outlier" in section
+    assert any(f" Mandel k {noisy} " in line and line.endswith(" outlier") for line in lines)

@@ -112,7 +112,7 @@ def test_pdf_prints_notes_escaped_and_preliminary_before_publication(analysed):
         # the markup is printed as typed, not interpreted
         assert MARKUP in text and "Second line of the comments." in text
         assert NOTES["conclusions"] in text
-        body = text.split("9 Comments and conclusions", 1)[1]
+        body = text.split("10 Comments and conclusions", 1)[1]
         assert body.index("Comments on performance") < body.index(MARKUP)
         assert body.index("Conclusions") < body.index(NOTES["conclusions"])
 
