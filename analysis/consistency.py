@@ -44,15 +44,17 @@ _DOUBLE_MAX = 40  # ISO 5725-2 Table 5 stops at 40 laboratories
 class Consistency:
     """The core's answers for every point (``groups``) and result, with what applies.
 
-    ``codes``: the laboratories' codes, sorted (the core's lab index); ``has_repeats`` per
-    result; ``reasons`` per test and point ("" where the test applies); ``extremes`` per
-    point the result indexes of the lowest, second lowest, second highest and highest
-    value; ``worst_h`` / ``worst_k`` per point the worst code of a laboratory's h / k."""
+    ``codes``: the laboratories' codes, sorted; ``lab`` per result its index in ``codes``
+    (the core's lab index); ``has_repeats`` per result; ``reasons`` per test and point
+    ("" where the test applies); ``extremes`` per point the result indexes of the lowest,
+    second lowest, second highest and highest value; ``worst_h`` / ``worst_k`` per point
+    the worst code of a laboratory's h / k."""
 
     mandel: iso.Mandel
     grubbs: iso.Grubbs
     cochran: iso.Cochran
     codes: np.ndarray
+    lab: np.ndarray
     has_repeats: np.ndarray
     reasons: dict[str, np.ndarray]
     extremes: np.ndarray
@@ -64,17 +66,18 @@ def compute(table: ResultTable, groups: Groups) -> Consistency:
     """Mandel h and k, Grubbs single and double, Cochran for all points at once."""
     has = np.isfinite(table.repeat_sd) & (table.n_repeats >= 2)
     codes, lab = np.unique(table.lab, return_inverse=True)
+    lab = lab.reshape(-1)
     n = np.where(has, table.n_repeats, 1)
     sd = np.where(has, table.repeat_sd, 0.0)
-    cells = iso.cells_from_summaries(table.value, sd, n, lab.reshape(-1), groups)
+    cells = iso.cells_from_summaries(table.value, sd, n, lab, groups)
     mandel, grubbs = iso.mandel_cells(cells), iso.grubbs(table.value, groups)
     why = _reasons(grubbs, mandel, has, n, groups)
-    h_ok = why["mandel_h"][groups.index] == ""
-    k_ok = (why["mandel_k"][groups.index] == "") & has
+    h_ok = (why["mandel_h"] == "")[groups.index]
+    k_ok = (why["mandel_k"] == "")[groups.index] & has
     worst_h, worst_k = np.zeros(groups.n_groups, np.intp), np.zeros(groups.n_groups, np.intp)
     np.maximum.at(worst_h, groups.index[h_ok], mandel.h_code[h_ok])
     np.maximum.at(worst_k, groups.index[k_ok], mandel.k_code[k_ok])
-    return Consistency(mandel, grubbs, iso.cochran_cells(cells), codes, has, why,
+    return Consistency(mandel, grubbs, iso.cochran_cells(cells), codes, lab, has, why,
                        _extremes(table.value, groups), worst_h, worst_k)  # fmt: skip
 
 
@@ -137,7 +140,7 @@ def point_records(
     table: ResultTable, groups: Groups, points: Sequence[tuple[Any, ...]]
 ) -> list[dict[str, Any]]:
     c = compute(table, groups)
-    by_point = np.lexsort((table.lab, groups.index))  # each point's labs in code order
+    by_point = np.lexsort((c.lab, groups.index))  # each point's labs in code order
     bounds = np.concatenate(([0], np.cumsum(groups.counts())))
     labs = _lab_entries(table, c)
     out = []
@@ -193,19 +196,20 @@ def _test(reason: str, critical_5: float, critical_1: float, **parts: Any) -> di
     return rec
 
 
+_FLAGS = (*VERDICTS, NA)  # code 3: not applicable
+
+
 def _lab_entries(table: ResultTable, c: Consistency) -> list[dict[str, Any]]:
     """Per result: the laboratory's h and k with their flags (None / "not applicable")."""
     m, why, g = c.mandel, c.reasons, c.mandel.group
-    h_ok = why["mandel_h"][g] == ""
-    k_ok = (why["mandel_k"][g] == "") & c.has_repeats
-    names = np.asarray(VERDICTS)
-    h = np.where(h_ok, m.h, np.nan).tolist()
-    k = np.where(k_ok, m.k, np.nan).tolist()
-    hf = np.where(h_ok, names[m.h_code], NA).tolist()
-    kf = np.where(k_ok, names[m.k_code], NA).tolist()
+    h_ok = (why["mandel_h"] == "")[g]
+    k_ok = (why["mandel_k"] == "")[g] & c.has_repeats
+    h, k = np.where(h_ok, m.h, np.nan).tolist(), np.where(k_ok, m.k, np.nan).tolist()
+    hf, kf = np.where(h_ok, m.h_code, 3).tolist(), np.where(k_ok, m.k_code, 3).tolist()
+    flag = _FLAGS
     return [
-        {"lab": lab, "h": None if x != x else x, "h_flag": a, "k": None if y != y else y,
-         "k_flag": b}
+        {"lab": lab, "h": None if x != x else x, "h_flag": flag[a], "k": None if y != y else y,
+         "k_flag": flag[b]}
         for lab, x, a, y, b in zip(table.lab.tolist(), h, hf, k, kf, strict=True)
     ]  # fmt: skip
 

@@ -186,8 +186,8 @@ def cells_from_summaries(
     empty = np.flatnonzero(groups.counts() == 0)
     if empty.size:
         raise CoreInputError(f"group(s) {empty[:10].tolist()} have no results")
-    key = groups.index * (int(labs.max()) + 1 if labs.size else 1) + labs
-    if np.unique(key).size != key.size:
+    key = np.sort(groups.index * (int(labs.max()) + 1 if labs.size else 1) + labs)
+    if np.any(key[1:] == key[:-1]):
         raise CoreInputError("each laboratory may have one cell per group")
     return Cells(groups.index, labs, nn.astype(np.intp), m, s, groups.n_groups)
 
