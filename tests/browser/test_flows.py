@@ -33,10 +33,11 @@ pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
 PASSWORD = "correct horse battery staple"  # tests.factories.UserFactory's
 CODE = "IMU-BROWSER-01"
-# formats.md §1 without the coordinator-only `lab` column, in the spec's order.
+# formats.md §1 without the coordinator-only `lab` column, in the spec's order, with the
+# optional repeatability columns (repeat_sd, n_repeats) before the note.
 TEMPLATE_HEADER = [
     "device", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2", "sensitivity",
-    "unit", "expanded_uncertainty", "coverage_factor", "dof", "note",
+    "unit", "expanded_uncertainty", "coverage_factor", "dof", "repeat_sd", "n_repeats", "note",
 ]  # fmt: skip
 LINEAR_POINTS = {(axis, f) for axis in "XYZ" for f in (5.0, 10.0, 20.0)}  # protocols: linear
 
