@@ -98,7 +98,8 @@ def test_csv_template_has_one_row_per_point(client, staff):
     assert len(rows) == 4
     assert list(rows[0]) == [
         "device", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2",
-        "sensitivity", "unit", "expanded_uncertainty", "coverage_factor", "dof", "note",
+        "sensitivity", "unit", "expanded_uncertainty", "coverage_factor", "dof", "repeat_sd",
+        "n_repeats", "note",
     ]  # fmt: skip
     assert {(r["device"], r["axis"], float(r["frequency_hz"])) for r in rows} == {
         ("MEMS 1", a, f) for a in "XY" for f in (5.0, 10.0)

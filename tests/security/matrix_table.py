@@ -210,6 +210,14 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    "coordinator/<slug:code>/consistency/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/consistency.csv": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
     # participants' results pages: 404 until published (comparison 1 is analysed)
     "results/<slug:code>/": Row(
         get="302 404 404 404 404 404 302 302 404",
@@ -228,6 +236,14 @@ TABLE: dict[str, Row] = {
         post="302 405 405 405 405 405 302 302 405",
     ),
     "results/<slug:code>/compatibility/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "results/<slug:code>/consistency/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "results/<slug:code>/consistency.csv": Row(
         get="302 404 404 404 404 404 302 302 404",
         post="302 405 405 405 405 405 302 302 405",
     ),
@@ -413,6 +429,8 @@ PUBLISHED: dict[str, Row] = {
     "results/<slug:code>/scores.<str:fmt>": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/charts/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/compatibility/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "results/<slug:code>/consistency/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "results/<slug:code>/consistency.csv": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "reports/<slug:code>/": Row(get="302 200 200 200 200 404 302 302 200", post=""),
     "api/v1/comparisons/<slug:code>/scores/": Row(
         get="401 200 200 200 200 404 200 401 200", post=""
