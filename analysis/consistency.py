@@ -2,7 +2,7 @@
 
 Plain Python over :mod:`analysis.core.consistency` (no ORM), used by ``pt_compare`` and by
 the analysis runs, so both report the same verdicts.  Each laboratory's result at a point
-is its cell: the value is the cell mean; ``repeat_sd`` and ``n_repeats`` (formats.md §1,
+is its cell: the value is the cell mean; ``repeat_sd`` and ``n_repeats`` (interfaces.md §1,
 optional) are its within-laboratory standard deviation and number of repeats.
 
 * Mandel's h (per laboratory, from the cell means) and Grubbs' single and double tests
@@ -132,7 +132,7 @@ def _extremes(value: np.ndarray, groups: Groups) -> np.ndarray:
 
 
 def consistency_records(analysis: Analysis) -> list[dict[str, Any]]:
-    """One record per measurement point (formats.md §4 ``consistency``), full precision."""
+    """One record per measurement point (interfaces.md §4 ``consistency``), full precision."""
     return point_records(analysis.table, analysis.groups, analysis.points)
 
 
