@@ -21,7 +21,7 @@ core; only the records (one per point, one entry per laboratory) are built in Py
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -133,24 +133,28 @@ def _extremes(value: np.ndarray, groups: Groups) -> np.ndarray:
 
 def consistency_records(analysis: Analysis) -> list[dict[str, Any]]:
     """One record per measurement point (interfaces.md §4 ``consistency``), full precision."""
+    return list(iter_records(analysis))
+
+
+def iter_records(analysis: Analysis) -> Iterator[dict[str, Any]]:
+    """:func:`consistency_records` one point at a time: a writer that streams them never
+    holds the records of a whole round (one entry per result) at once."""
     return point_records(analysis.table, analysis.groups, analysis.points)
 
 
 def point_records(
     table: ResultTable, groups: Groups, points: Sequence[tuple[Any, ...]]
-) -> list[dict[str, Any]]:
+) -> Iterator[dict[str, Any]]:
     c = compute(table, groups)
     by_point = np.lexsort((c.lab, groups.index))  # each point's labs in code order
     bounds = np.concatenate(([0], np.cumsum(groups.counts())))
-    labs = _lab_entries(table, c)
-    out = []
+    labs = _LabColumns(table, c)
     for g, point in enumerate(points):
         rec: dict[str, Any] = dict(zip(POINT_KEYS, point, strict=True))
         rec |= _point_tests(table, c, g)
-        rec["labs"] = [labs[i] for i in by_point[bounds[g] : bounds[g + 1]].tolist()]
+        rec["labs"] = labs.entries(by_point[bounds[g] : bounds[g + 1]])
         rec["signals"] = _signals(rec)
-        out.append(rec)
-    return out
+        yield rec
 
 
 def _point_tests(table: ResultTable, c: Consistency, g: int) -> dict[str, Any]:
@@ -199,19 +203,29 @@ def _test(reason: str, critical_5: float, critical_1: float, **parts: Any) -> di
 _FLAGS = (*VERDICTS, NA)  # code 3: not applicable
 
 
-def _lab_entries(table: ResultTable, c: Consistency) -> list[dict[str, Any]]:
-    """Per result: the laboratory's h and k with their flags (None / "not applicable")."""
-    m, why, g = c.mandel, c.reasons, c.mandel.group
-    h_ok = (why["mandel_h"] == "")[g]
-    k_ok = (why["mandel_k"] == "")[g] & c.has_repeats
-    h, k = np.where(h_ok, m.h, np.nan).tolist(), np.where(k_ok, m.k, np.nan).tolist()
-    hf, kf = np.where(h_ok, m.h_code, 3).tolist(), np.where(k_ok, m.k_code, 3).tolist()
-    flag = _FLAGS
-    return [
-        {"lab": lab, "h": None if x != x else x, "h_flag": flag[a], "k": None if y != y else y,
-         "k_flag": flag[b]}
-        for lab, x, a, y, b in zip(table.lab.tolist(), h, hf, k, kf, strict=True)
-    ]  # fmt: skip
+class _LabColumns:
+    """Per result the laboratory's h and k (NaN where they do not apply, also k without
+    repeat data) and their flag codes (3: not applicable), as entries of a point's record."""
+
+    def __init__(self, table: ResultTable, c: Consistency) -> None:
+        m, why, g = c.mandel, c.reasons, c.mandel.group
+        h_ok = (why["mandel_h"] == "")[g]
+        k_ok = (why["mandel_k"] == "")[g] & c.has_repeats
+        self.lab, self.h, self.k = (
+            table.lab,
+            np.where(h_ok, m.h, np.nan),
+            np.where(k_ok, m.k, np.nan),
+        )
+        self.hf, self.kf = np.where(h_ok, m.h_code, 3), np.where(k_ok, m.k_code, 3)
+
+    def entries(self, rows: np.ndarray) -> list[dict[str, Any]]:
+        flag = _FLAGS
+        columns = (a[rows].tolist() for a in (self.lab, self.h, self.hf, self.k, self.kf))
+        return [
+            {"lab": lab, "h": None if x != x else x, "h_flag": flag[a],
+             "k": None if y != y else y, "k_flag": flag[b]}
+            for lab, x, a, y, b in zip(*columns, strict=True)
+        ]  # fmt: skip
 
 
 def _signals(rec: dict[str, Any]) -> bool:
@@ -239,32 +253,32 @@ def csv_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
     """The consistency records in long form: per point, one row per side of each Grubbs
     test, one for Cochran, one per laboratory for Mandel h and k; a test that does not
     apply is one row with its reason."""
-    out = []
-    for rec in records:
-        point = {k: rec[k] for k in POINT_KEYS}
-        for name in TESTS:
-            out += [point | row for row in _test_rows(name, rec)]
-    return out
+    return [dict(zip(CSV_COLUMNS, row, strict=True)) for rec in records for row in csv_tuples(rec)]
 
 
-def _test_rows(name: str, rec: dict[str, Any]) -> list[dict[str, Any]]:
-    t = rec[name]
-    if not t["applicable"]:
-        return [{"test": name, "verdict": NA, "reason": t["reason"]}]
-    crit = {"critical_5": t["critical_5"], "critical_1": t["critical_1"]}
-    if name.startswith("grubbs"):
-        return [{"test": name, "side": side, "lab": " ".join(t[side]["labs"]),
-                 "statistic": t[side]["statistic"], **crit, "verdict": t[side]["verdict"]}
-                for side in ("high", "low")]  # fmt: skip
-    if name == "cochran":
-        return [{"test": name, "lab": " ".join(t["labs"]), "statistic": t["statistic"], **crit,
-                 "verdict": t["verdict"]}]  # fmt: skip
-    key = name[-1]  # mandel_h -> h, mandel_k -> k
-    return [
-        {"test": name, "lab": lab["lab"], "statistic": lab[key], **crit,
-         "verdict": lab[f"{key}_flag"], "reason": _NO_REPEATS if lab[key] is None else ""}
-        for lab in rec["labs"]
-    ]  # fmt: skip
+def csv_tuples(rec: dict[str, Any]) -> Iterator[tuple[Any, ...]]:
+    """:func:`csv_rows` of one record as tuples in :data:`CSV_COLUMNS` order (None: empty)."""
+    point = tuple(rec[k] for k in POINT_KEYS)
+    for name in TESTS:
+        t = rec[name]
+        if not t["applicable"]:
+            yield (*point, name, None, None, None, None, None, NA, t["reason"])
+            continue
+        crit = (t["critical_5"], t["critical_1"])
+        if name.startswith("grubbs"):
+            for side in ("high", "low"):
+                s = t[side]
+                yield (*point, name, side, " ".join(s["labs"]), s["statistic"], *crit,
+                       s["verdict"], None)  # fmt: skip
+        elif name == "cochran":
+            yield (*point, name, None, " ".join(t["labs"]), t["statistic"], *crit, t["verdict"],
+                   None)  # fmt: skip
+        else:
+            key, flag = name[-1], f"{name[-1]}_flag"  # mandel_h -> h, mandel_k -> k
+            for lab in rec["labs"]:
+                value = lab[key]
+                yield (*point, name, None, lab["lab"], value, *crit, lab[flag],
+                       _NO_REPEATS if value is None else None)  # fmt: skip
 
 
 def verdict_text(test: dict[str, Any], *, who: bool = True) -> str:

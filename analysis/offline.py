@@ -129,16 +129,34 @@ def csv_parts(analysis: Analysis) -> Iterator[str]:
     pairs = _matrix_pairs(compatibility_records(analysis.compatibility), limits)
     if pairs:
         yield "\n" + write_table(pairs, columns=MATRIX_COLUMNS, bom=False).decode()
-    yield consistency_csv(consistency.consistency_records(analysis))
+    yield from consistency_csv(analysis)
 
 
-def consistency_csv(records: list[dict[str, Any]]) -> str:
-    """The consistency tests in long form (``analysis.consistency.csv_rows``), after one
-    blank line like the matrices."""
-    rows = consistency.csv_rows(records)
-    if not rows:
-        return ""
-    return "\n" + write_table(rows, columns=consistency.CSV_COLUMNS, bom=False).decode()
+def consistency_csv(analysis: Analysis) -> Iterator[str]:
+    """The consistency tests in long form (``analysis.consistency.csv_tuples``) after one
+    blank line like the matrices, a point at a time; cells as ``write_table`` writes them,
+    each distinct text escaped once."""
+    buffer = io.StringIO(newline="")
+    writer = csv.writer(buffer, lineterminator="\r\n")
+    buffer.write("\n")
+    writer.writerow(consistency.CSV_COLUMNS)
+    text: dict[object, str] = {}
+
+    def cell(value: object) -> str:
+        if type(value) is float:
+            return repr(value)
+        found = text.get(value)
+        if found is None:
+            found = text[value] = _cell(value)
+        return found
+
+    for rec in consistency.iter_records(analysis):
+        writer.writerows([[cell(v) for v in row] for row in consistency.csv_tuples(rec)])
+        if buffer.tell() > 2**20:
+            yield buffer.getvalue()
+            buffer.seek(0)
+            buffer.truncate()
+    yield buffer.getvalue()
 
 
 def _score_table(analysis: Analysis) -> tuple[list[np.ndarray], np.ndarray]:

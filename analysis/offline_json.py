@@ -8,6 +8,7 @@ orjson's two-space layout. NaN and infinity are written as null.
 
 from __future__ import annotations
 
+import itertools
 import re
 from collections.abc import Iterator
 from itertools import repeat
@@ -16,6 +17,7 @@ from typing import Any
 import numpy as np
 import orjson
 
+from analysis.consistency import iter_records
 from analysis.pipeline import (
     POINT_KEYS,
     SIGMA_KEYS,
@@ -48,6 +50,9 @@ def _json_compact(doc: dict[str, Any], analysis: Analysis) -> Iterator[bytes]:
     yield b"{"
     for n, (key, value) in enumerate(doc.items()):
         yield (b"," if n else b"") + orjson.dumps(key) + b":"
+        if key == "consistency":
+            yield from _consistency_json(analysis, _JSON, b"", b"")
+            continue
         if key != "scores":
             yield orjson.dumps(value, option=_JSON)
             continue
@@ -56,6 +61,25 @@ def _json_compact(doc: dict[str, Any], analysis: Analysis) -> Iterator[bytes]:
             yield b"," + chunk if i else chunk
         yield b"]"
     yield b"}\n"
+
+
+def _consistency_json(
+    analysis: Analysis, option: int, before: bytes, end: bytes
+) -> Iterator[bytes]:
+    """The ``consistency`` list a point at a time (a record holds an entry per result of
+    its point): ``orjson.dumps`` of the whole list, compact (``before`` and ``end`` empty)
+    or indented as the document's other keys are (a record is two levels deep)."""
+    records = iter_records(analysis)
+    first = next(records, None)
+    if first is None:
+        yield b"[]"
+        return
+    for i, rec in enumerate(itertools.chain([first], records)):
+        body = orjson.dumps(rec, option=option)
+        yield (
+            (b"[" if i == 0 else b",") + before + (body.replace(b"\n", before) if before else body)
+        )
+    yield end + b"]"
 
 
 def score_json_chunks(analysis: Analysis, size: int) -> Iterator[bytes]:
@@ -120,6 +144,9 @@ def _json_indented(doc: dict[str, Any], analysis: Analysis) -> Iterator[bytes]:
     yield b"{"
     for n, (key, value) in enumerate(doc.items()):
         yield (b",\n  " if n else b"\n  ") + orjson.dumps(key) + b": "
+        if key == "consistency":
+            yield from _consistency_json(analysis, indented, b"\n    ", b"\n  ")
+            continue
         if key != "scores" or not analysis.table.value.size:
             yield orjson.dumps(value, option=indented).replace(b"\n", b"\n  ")
             continue

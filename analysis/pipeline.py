@@ -440,13 +440,14 @@ def json_value(v: Any) -> Any:
 
 def to_json(analysis: Analysis, *, scores: bool = True) -> dict[str, list[dict[str, Any]]]:
     """The JSON document of formats.md §4 (full precision; NaN/inf as null).  With
-    ``scores=False`` the ``scores`` list is left empty, for a writer that streams them
-    (:func:`score_record_chunks`)."""
+    ``scores=False`` the ``scores`` and ``consistency`` lists (one entry per result) are
+    left empty, for a writer that streams them (:func:`score_record_chunks`,
+    ``analysis.consistency.iter_records``)."""
     return {
         "assigned_values": assigned_records(analysis),
         "scores": score_records(analysis) if scores else [],
         "compatibility": compatibility_records(analysis.compatibility),
-        "consistency": consistency_records(analysis),
+        "consistency": consistency_records(analysis) if scores else [],
     }
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy import stats
+from scipy import special  # t and F quantiles (what scipy.stats calls), without its 0.5 s import
 
 from analysis.core.groups import (
     BoolArray,
@@ -79,7 +79,7 @@ def mandel_h_critical(p: ArrayLike, alpha: float) -> FloatArray:
     h = (p - 1) t / sqrt(p (t^2 + p - 2)), t two-sided at alpha with p - 2 df."""
     _check_alpha(alpha)
     pp = _p_array("p", p, 3)
-    t = stats.t.ppf(1 - alpha / 2, pp - 2)
+    t = special.stdtrit(pp - 2, 1 - alpha / 2)
     return np.asarray((pp - 1) * t / np.sqrt(pp * (t * t + pp - 2)), dtype=np.float64)
 
 
@@ -88,7 +88,7 @@ def mandel_k_critical(p: ArrayLike, n: ArrayLike, alpha: float) -> FloatArray:
     k = sqrt(p / (1 + (p - 1)/F)), F upper alpha with nu1 = n - 1, nu2 = (p - 1)(n - 1)."""
     _check_alpha(alpha)
     pp, nn = _p_array("p", p, 2), _p_array("n", n, 2)
-    f = stats.f.ppf(1 - alpha, nn - 1, (pp - 1) * (nn - 1))
+    f = special.fdtri(nn - 1, (pp - 1) * (nn - 1), 1 - alpha)
     return np.asarray(np.sqrt(pp / (1 + (pp - 1) / f)), dtype=np.float64)
 
 
@@ -98,7 +98,7 @@ def grubbs_critical(p: ArrayLike, alpha: float) -> FloatArray:
     G = (p - 1)/sqrt(p) sqrt(t^2 / (p - 2 + t^2)), t with p - 2 df."""
     _check_alpha(alpha)
     pp = _p_array("p", p, 3)
-    t = stats.t.ppf(1 - alpha / (2 * pp), pp - 2)
+    t = special.stdtrit(pp - 2, 1 - alpha / (2 * pp))
     return np.asarray((pp - 1) / np.sqrt(pp) * np.sqrt(t * t / (pp - 2 + t * t)), np.float64)
 
 
@@ -121,7 +121,7 @@ def cochran_critical(p: ArrayLike, n: ArrayLike, alpha: float) -> FloatArray:
     nu2 = (p - 1)(n - 1) (exact when C > 1/2, as for all tabulated values)."""
     _check_alpha(alpha)
     pp, nn = _p_array("p", p, 2), _p_array("n", n, 2)
-    f = stats.f.ppf(1 - alpha / pp, nn - 1, (pp - 1) * (nn - 1))
+    f = special.fdtri(nn - 1, (pp - 1) * (nn - 1), 1 - alpha / pp)
     return np.asarray(f / (f + pp - 1), dtype=np.float64)
 
 
