@@ -110,8 +110,35 @@ def test_sigkill_mid_single_task_run_is_taken_over(workers, undisturbed, tmp_pat
     assert_same_numbers_no_duplicates(run, undisturbed)
 
 
-# The sweep's timing in the next test (production: 30 s, 300 s, 60 s).
+# The sweep's timing in the next tests (production: 30 s, 300 s, 60 s).
 HEARTBEAT, STALE, SWEEP = 0.5, 3.0, 1.0
+# Chunks of 50 results, and a visibility timeout of an hour (as in production): only the
+# sweep can bring a lost chunk back in time.
+SWEEP_ENV = {
+    "ANALYSIS_CHUNK_RESULTS": "50",
+    "CELERY_VISIBILITY_TIMEOUT": "3600",
+    "JOB_HEARTBEAT_SECONDS": str(HEARTBEAT),
+    "JOB_STALE_SECONDS": str(STALE),
+    "JOB_SWEEP_SECONDS": str(SWEEP),
+}
+
+
+def recover_with_sweep(workers, run: AnalysisRun, tmp_path, env: dict[str, str]) -> float:
+    """A new worker and beat; the run finished on them, and the seconds from the new
+    worker's readiness to the run's end."""
+    ready = tmp_path / "ready"
+    workers.start("w1", FAULT_READY=str(ready), **env)
+    workers.start_beat(tmp_path / "beat-schedule", **env)
+    wait_until(ready.exists, "the new worker to be ready", workers)
+    t_ready = float(ready.read_text())
+
+    def finished() -> bool:
+        run.refresh_from_db()
+        return run.status in ("succeeded", "failed")
+
+    wait_until(finished, "the run to finish", workers, timeout=STALE + 30 * SWEEP)
+    assert run.status == "succeeded", run.error
+    return run.finished_at.timestamp() - t_ready
 
 
 def test_sigkill_of_the_worker_main_process_is_recovered_by_the_sweep(
@@ -120,14 +147,8 @@ def test_sigkill_of_the_worker_main_process_is_recovered_by_the_sweep(
     """The lost chunk waits in Redis' unacked set for the whole visibility timeout (an hour
     here, as in production); the beat sweep sees its heartbeat go stale and queues it
     again, and the run finishes within a few sweep intervals of the new worker's start."""
-    env = {
-        "ANALYSIS_CHUNK_RESULTS": "50",
-        "CELERY_VISIBILITY_TIMEOUT": "3600",
-        "JOB_HEARTBEAT_SECONDS": str(HEARTBEAT),
-        "JOB_STALE_SECONDS": str(STALE),
-        "JOB_SWEEP_SECONDS": str(SWEEP),
-    }
-    marker, ready = tmp_path / "hung", tmp_path / "ready"
+    env = SWEEP_ENV
+    marker = tmp_path / "hung"
     doomed = workers.start("w0", FAULT_HANG_CHUNK="3", FAULT_MARKER=str(marker), **env)
     demo = Comparison.objects.get(code="IMU-2024-DEMO")
     run = analysis_run_start(comparison=demo, user=None)
@@ -140,18 +161,7 @@ def test_sigkill_of_the_worker_main_process_is_recovered_by_the_sweep(
     # a coordinator starting a run meanwhile gets the same run, which will finish
     assert analysis_run_start(comparison=demo, user=None).pk == run.pk
 
-    workers.start("w1", FAULT_READY=str(ready), **env)
-    workers.start_beat(tmp_path / "beat-schedule", **env)
-    wait_until(ready.exists, "the new worker to be ready", workers)
-    t_ready = float(ready.read_text())
-
-    def finished() -> bool:
-        run.refresh_from_db()
-        return run.status in ("succeeded", "failed")
-
-    wait_until(finished, "the run to finish", workers, timeout=STALE + 30 * SWEEP)
-    assert run.status == "succeeded", run.error
-    elapsed = run.finished_at.timestamp() - t_ready
+    elapsed = recover_with_sweep(workers, run, tmp_path, env)
     # stale by then at the latest, seen by the next sweep, redone with the 14 left: a few
     # sweep intervals, and nothing like the visibility timeout
     assert elapsed < STALE + 10 * SWEEP, elapsed
@@ -181,14 +191,8 @@ def test_sigkill_of_a_prefork_main_process_ends_the_orphan_and_the_sweep_recover
     Celery's prefork pool sets PR_SET_PDEATHSIG(SIGKILL) in its children, so the kernel
     ends the child with its parent and PostgreSQL rolls its transaction back. This test
     holds that promise (and the recovery after it) against a Celery upgrade."""
-    env = {
-        "ANALYSIS_CHUNK_RESULTS": "50",
-        "CELERY_VISIBILITY_TIMEOUT": "3600",
-        "JOB_HEARTBEAT_SECONDS": str(HEARTBEAT),
-        "JOB_STALE_SECONDS": str(STALE),
-        "JOB_SWEEP_SECONDS": str(SWEEP),
-    }
-    marker, ready = tmp_path / "hung", tmp_path / "ready"
+    env = SWEEP_ENV
+    marker = tmp_path / "hung"
     doomed = workers.start("w0", pool="prefork", FAULT_HANG_CHUNK="3", FAULT_MARKER=str(marker),
                            **env)  # fmt: skip
     demo = Comparison.objects.get(code="IMU-2024-DEMO")
@@ -200,17 +204,6 @@ def test_sigkill_of_a_prefork_main_process_ends_the_orphan_and_the_sweep_recover
     assert doomed.wait(10) == -signal.SIGKILL
     wait_until(lambda: not alive(child), "the orphaned child to end itself", timeout=10 * HEARTBEAT)
 
-    workers.start("w1", FAULT_READY=str(ready), **env)
-    workers.start_beat(tmp_path / "beat-schedule", **env)
-    wait_until(ready.exists, "the new worker to be ready", workers)
-    t_ready = float(ready.read_text())
-
-    def finished() -> bool:
-        run.refresh_from_db()
-        return run.status in ("succeeded", "failed")
-
-    wait_until(finished, "the run to finish", workers, timeout=STALE + 30 * SWEEP)
-    assert run.status == "succeeded", run.error
-    assert run.finished_at.timestamp() - t_ready < STALE + 10 * SWEEP
+    assert recover_with_sweep(workers, run, tmp_path, env) < STALE + 10 * SWEEP
     assert AnalysisChunk.objects.get(run=run, index=3).attempts == 2
     assert_same_numbers_no_duplicates(run, undisturbed)
