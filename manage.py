@@ -6,7 +6,7 @@ import sys
 from importlib import import_module
 
 #: Commands that need no Django project: no settings, no database, no installed app
-#: (formats.md §4). They run without ``django.setup()``, which would import every installed
+#: (docs/interfaces.md §4). They run without ``django.setup()``, which would import every installed
 #: app (0.4 s, as long as reading a 200,000-row results table) and let them log at start-up
 #: (django-axes' "AXES: BEGIN" line) before the command's own output. Logging of the web
 #: service, the workers and every other command is untouched.

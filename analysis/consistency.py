@@ -1,4 +1,4 @@
-"""ISO 5725-2 consistency tools per measurement point of a results table (domain.md §6).
+"""ISO 5725-2 consistency tools per measurement point of a results table (docs/domain.md §6).
 
 Plain Python over :mod:`analysis.core.consistency` (no ORM), used by ``pt_compare`` and by
 the analysis runs, so both report the same verdicts.  Each laboratory's result at a point

@@ -216,7 +216,7 @@ class Score(models.Model):
 
 
 class CompatibilityMatrix(models.Model):
-    """Pairwise En between the levels of one factor within one group (domain.md §6)."""
+    """Pairwise En between the levels of one factor within one group (docs/domain.md §6)."""
 
     run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="matrices")
     factor = models.CharField(max_length=12)

@@ -1,4 +1,4 @@
-"""Output of the offline command ``pt_compare`` (formats.md §4): table, JSON and CSV.
+"""Output of the offline command ``pt_compare`` (docs/interfaces.md §4): table, JSON and CSV.
 
 Numbers are kept at full precision in JSON and CSV; only the terminal table
 rounds them for reading.  JSON (:mod:`analysis.offline_json`) and CSV are written a

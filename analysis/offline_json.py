@@ -1,4 +1,4 @@
-"""The JSON of ``pt_compare`` (formats.md §4), written a chunk of results at a time.
+"""The JSON of ``pt_compare`` (docs/interfaces.md §4), written a chunk of results at a time.
 
 Compact by default: the score records are joined from column pieces that orjson writes
 (:func:`score_json_chunks`), byte for byte ``orjson.dumps`` of the records without a
@@ -32,7 +32,7 @@ _JSON = orjson.OPT_SERIALIZE_NUMPY  # NaN and inf are written as null
 
 
 def json_parts(analysis: Analysis, indent: int | None = None) -> Iterator[bytes]:
-    """The document of formats.md §4 (``to_json``'s keys, in order), the scores a chunk at a
+    """The document of docs/interfaces.md §4 (``to_json``'s keys, in order), the scores a chunk at a
     time; compact, or indented by ``indent`` spaces as ``json.dumps(indent=...)`` lays it out."""
     doc = to_json(analysis, scores=False)
     parts = _json_indented(doc, analysis) if indent is not None else _json_compact(doc, analysis)

@@ -1,7 +1,7 @@
 """One analysis of a results table: assigned values, scores, compatibility matrices.
 
 Plain Python over ``analysis.core`` (no ORM): used by the offline command
-``pt_compare`` (formats.md §4) and by the analysis runs of the service, so both
+``pt_compare`` (docs/interfaces.md §4) and by the analysis runs of the service, so both
 compute the same numbers.  All measurement points go through the core in one
 call each; nothing here loops over results.
 """
@@ -88,7 +88,7 @@ class ResultTable:
 
 @dataclass(frozen=True)
 class AssignedSpec:
-    """How x_pt is obtained (domain.md §5); ``parse`` reads the command-line syntax."""
+    """How x_pt is obtained (docs/domain.md §5); ``parse`` reads the command-line syntax."""
 
     method: str
     reference_lab: str | None = None
@@ -271,7 +271,7 @@ def assigned_values_mixed(
     table: ResultTable, groups: Groups, points: list[tuple[Any, ...]], specs: list[AssignedSpec]
 ) -> AssignedValues:
     """Assigned values where each measurement point may have its own method (per-point
-    override, domain.md §5): each distinct method runs once over its points."""
+    override, docs/domain.md §5): each distinct method runs once over its points."""
     if len(set(specs)) == 1:
         return assigned_values(table, groups, points, specs[0])
     value = np.empty(groups.n_groups)
@@ -439,7 +439,7 @@ def json_value(v: Any) -> Any:
 
 
 def to_json(analysis: Analysis, *, scores: bool = True) -> dict[str, list[dict[str, Any]]]:
-    """The JSON document of formats.md §4 (full precision; NaN/inf as null).  With
+    """The JSON document of docs/interfaces.md §4 (full precision; NaN/inf as null).  With
     ``scores=False`` the ``scores`` and ``consistency`` lists (one entry per result) are
     left empty, for a writer that streams them (:func:`score_record_chunks`,
     ``analysis.consistency.iter_records``)."""
@@ -545,7 +545,7 @@ def score_columns(analysis: Analysis) -> tuple[dict[str, np.ndarray], np.ndarray
 
 
 def score_record_chunks(analysis: Analysis, size: int = 20_000) -> Iterator[list[dict[str, Any]]]:
-    """The score records (formats.md §4), ``size`` at a time, so that a writer holds one
+    """The score records (docs/interfaces.md §4), ``size`` at a time, so that a writer holds one
     chunk of dictionaries at once, never a whole round's."""
     cols, has_sigma = score_columns(analysis)
     without = [k for k in cols if k not in SIGMA_KEYS]
@@ -582,7 +582,7 @@ def matrix_record(m: CompatibilityMatrix) -> dict[str, Any]:
 
 
 def compatibility_records(matrices: Sequence[CompatibilityMatrix]) -> list[dict[str, Any]]:
-    """formats.md §4: the group's keys at the top level of each record."""
+    """docs/interfaces.md §4: the group's keys at the top level of each record."""
     out = []
     for m in matrices:
         rec = matrix_record(m)

@@ -1,4 +1,4 @@
-"""Analysis and results web pages (issue 5): run button, live progress, runs list, results
+"""Analysis and results web pages: run button, live progress, runs list, results
 (assigned values, scores with downloads, charts, compatibility heat maps) and publication.
 
 The results pages serve two audiences with the same views and templates:

@@ -13,7 +13,7 @@ PostgreSQL itself needs to read and write the same rows with COPY (largest size)
 
 Environment: DATABASE_URL (server, default postgres://postgres@127.0.0.1:5432/test;
 the scratch database sits beside it), CELERY_BROKER_URL (default Redis on localhost).
-Targets (issue 9): 1,000,000 results < 30 s; 2 workers >= 1.6x faster than 1;
+Targets: 1,000,000 results < 30 s; 2 workers >= 1.6x faster than 1;
 worker peak memory < 1 GB.
 """
 

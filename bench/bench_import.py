@@ -1,4 +1,4 @@
-"""Coordinator bulk import benchmark (issue 9, item 3; a script, not a test).
+"""Coordinator bulk import benchmark (a script, not a test).
 
     DATABASE_URL=postgres://postgres@127.0.0.1:5432/ANY .venv/bin/python bench/bench_import.py \
         [--scratch-db pt_bench_import] [--participants 10000] [--keep]

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Load test of the production server (issue 8 item 7): setup, ``make serve``, locust.
+"""Load test of the production server: setup, ``make serve``, locust.
 
 A script, not a test. Loopback only: the database, the broker and the server must
 all be on this machine (127.0.0.1, localhost or ::1); anything else is refused.

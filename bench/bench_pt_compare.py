@@ -1,8 +1,8 @@
-"""pt_compare on a whole national round (issue 16 item 6; a script, not a test).
+"""pt_compare on a whole national round (a script, not a test).
 
     .venv/bin/python bench/bench_pt_compare.py [--rows 200000] [--repeat 3] [--only a]
 
-Writes one results table (formats.md §1 with a lab column): ``--rows / 100`` laboratories
+Writes one results table (docs/interfaces.md §1 with a lab column): ``--rows / 100`` laboratories
 × 100 distinct measurement points (5 devices × X, Y × 10 frequencies, linear bench),
 sensitivities in full precision, laboratory after laboratory, as ``bench_import.py``
 does. Then runs, each as its own process, ``--repeat`` rounds of:

@@ -1,4 +1,4 @@
-"""CPU of one participant report in-process (issue 9; a script, not a test), on a round
+"""CPU of one participant report in-process (a script, not a test), on a round
 kept by ``bench_scale.py --keep``:
 
     DATABASE_URL=postgres://postgres@127.0.0.1:5432/<scratch-db>_10000x100 \\

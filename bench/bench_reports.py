@@ -1,4 +1,4 @@
-"""PDF report benchmark (issue 6): a summary of 100 labs x 100 points, and 1,000
+"""PDF report benchmark: a summary of 100 labs x 100 points, and 1,000
 participant reports issued by Celery workers.
 
 A script, not a test.  It wipes and migrates the PostgreSQL database named by
@@ -196,7 +196,7 @@ def issue_with_workers(
     included) and the load average (1 min) before and after; ``summary`` False: the
     participant reports only.  ``batch`` > 0: the summary
     task then one ``report_issue_batch_task`` per ``batch`` participants, as publication
-    fans them out; 0: one ``report_issue_task`` per report (the fan-out before issue 9).
+    fans them out; 0: one ``report_issue_task`` per report (the older fan-out).
     The machine may be shared: the workers' CPU-busy fraction, CPU / (wall x workers),
     is the figure that depends least on the other jobs."""
     from analysis.models import Report

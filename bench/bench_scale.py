@@ -1,4 +1,4 @@
-"""Scaling benchmark (issue 9, item 5; a script, not a test): import -> analysis ->
+"""Scaling benchmark (a script, not a test): import -> analysis ->
 participant reports, end to end, at several round sizes, with 1 and with 2 workers.
 
     DATABASE_URL=postgres://postgres@127.0.0.1:5432/ANY \\

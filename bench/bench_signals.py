@@ -1,4 +1,4 @@
-"""Benchmark of the raw-signal pipeline (issue 7): sine fit vs the study's procedure.
+"""Benchmark of the raw-signal pipeline: sine fit vs the study's procedure.
 
 One synthetic linear-bench record of known truth: 40 s at an actual 1663.7 Hz
 (nominal 1660), 3 axes (θ = 30°, α = 45°, so every axis has a usable component),

@@ -1,4 +1,4 @@
-"""Locust scenario of the load test (issue 8 item 7); run through ``bench/bench_load.py``.
+"""Locust scenario of the load test; run through ``bench/bench_load.py``.
 
 Reads the fixture written by ``bench_load.py setup`` (``LOAD_FIXTURE``, default
 ``/tmp/pt-load/fixture.json``): one API key per laboratory, the coordinators'

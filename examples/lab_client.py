@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Example lab software client for the proficiency-testing REST API (formats.md §3).
+"""Example lab software client for the proficiency-testing REST API (docs/interfaces.md §3).
 
 Lists the comparisons your laboratory takes part in, downloads the results
 template of one comparison, submits a results file (CSV or XLSX) and prints

@@ -1,6 +1,6 @@
-"""A coordinator's import of many participants' results at once (issue 9, item 3).
+"""A coordinator's import of many participants' results at once.
 
-The file is the results table of formats.md §1 with the ``lab`` column filled with
+The file is the results table of docs/interfaces.md §1 with the ``lab`` column filled with
 each row's participant code, as a coordinator's table has it. It is streamed: read
 and checked ``RESULTS_IMPORT_CHUNK_ROWS`` rows at a time by the importer's own
 column-wise validation (:func:`labs.importers.stream.read_chunks`), so every message

@@ -19,7 +19,8 @@ from labs.importers.values import format_number, human_size
 from labs.models import LabAPIKey, Result
 from proficiency.models import MeasurementPoint
 
-#: Grid columns, in the results-table names of formats.md §1: (label, short title, max length).
+#: Grid columns, in the results-table names of docs/interfaces.md §1:
+#: (label, short title, max length).
 GRID_COLUMNS: dict[str, tuple[str, str, int]] = {
     "sensitivity": ("Sensitivity", "Sensitivity", 40),
     "expanded_uncertainty": ("Expanded uncertainty U", "U", 40),
@@ -175,7 +176,7 @@ class ResultGridForm(forms.Form):
 
 
 class ResultUploadForm(forms.Form):
-    """A CSV or XLSX results table (formats.md §1), refused above MAX_UPLOAD_BYTES."""
+    """A CSV or XLSX results table (docs/interfaces.md §1), refused above MAX_UPLOAD_BYTES."""
 
     file = forms.FileField(
         label="Results file (CSV or XLSX)",

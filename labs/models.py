@@ -241,7 +241,7 @@ class LabAPIKeyManager(APIKeyManager):
 
 
 class LabAPIKey(AbstractAPIKey):
-    """A hashed, revocable API key that belongs to one laboratory (formats.md §3).
+    """A hashed, revocable API key that belongs to one laboratory (docs/interfaces.md §3).
 
     Only the prefix and the hash are stored; the key itself is shown once, when it
     is created (``labs.services.api_key_create``)."""
@@ -257,7 +257,7 @@ class LabAPIKey(AbstractAPIKey):
         verbose_name_plural = "lab API keys"
 
 
-# --- raw time series behind a result (issue 7 item 8, formats.md §2) ----------------------
+# --- raw time series behind a result (docs/interfaces.md §2) ----------------------
 
 
 def raw_file_path(instance: RawFile, filename: str) -> str:
@@ -283,7 +283,7 @@ class RawFile(models.Model):
 class RawRecord(models.Model):
     """Raw record(s) attached by a laboratory to a measurement point of its submission:
     the MEMS record, an optional reference record (``ref``/``encoder_rad``), and the
-    metadata of each (sidecar merged with the form fields, formats.md §2)."""
+    metadata of each (sidecar merged with the form fields, docs/interfaces.md §2)."""
 
     participant = models.ForeignKey(
         Participant, on_delete=models.CASCADE, related_name="raw_records"

@@ -2,7 +2,7 @@
 into :class:`~analysis.core.signals.records.Record`, and the record-with-fit figure.
 
 The numerics are ``analysis.core.signals``'; this module only adapts uploads and stored
-files to its readers (formats.md §2) and draws the figure (matplotlib, Agg backend).
+files to its readers (docs/interfaces.md §2) and draws the figure (matplotlib, Agg backend).
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from analysis.core.signals.records import (
 )
 from analysis.core.signals.sinefit import fit_known_frequency
 
-#: form fields that are metadata keys (formats.md §2); lists and objects come as JSON
+#: form fields that are metadata keys (docs/interfaces.md §2); lists and objects come as JSON
 META_NUMBERS = (
     "fs_nominal_hz", "fs_hz", "full_scale_g", "a_ref_m_s2", "tilt_deg", "rotation_deg",
     "radius_m", "reference_radius_m", "oscillation_angle_deg",
@@ -77,7 +77,7 @@ def _json_field(value: Any, key: str) -> Any:
 
 
 def read_record(content: bytes, name: str, meta: Mapping[str, Any]) -> Record:
-    """CSV when the name ends in ``.csv``, int16 little-endian otherwise (formats.md §2)."""
+    """CSV when the name ends in ``.csv``, int16 little-endian otherwise (docs/interfaces.md §2)."""
     if name.lower().endswith(".csv"):
         return read_csv(content, name, meta)
     if "channels" not in meta:

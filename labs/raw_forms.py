@@ -1,5 +1,5 @@
-"""The web form for raw records: the same fields as the API (formats.md §1 point columns,
-formats.md §2 metadata keys); ``labs.raw_services`` validates the content."""
+"""The web form for raw records: the same fields as the API (docs/interfaces.md §1 point columns,
+docs/interfaces.md §2 metadata keys); ``labs.raw_services`` validates the content."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Read side of the raw records (issue 7 item 8): who sees which records, the stored
+"""Read side of the raw records: who sees which records, the stored
 files read back into records, and the record-with-fit figure.  Each owns its joins."""
 
 from __future__ import annotations

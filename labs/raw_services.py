@@ -1,4 +1,4 @@
-"""Raw records behind a result (issue 7 item 8): upload, storage by content hash, and the
+"""Raw records behind a result: upload, storage by content hash, and the
 recomputation job (``pending → running → succeeded | failed``).
 
 ``raw_record_upload`` validates everything a person can get wrong (which point, the
@@ -9,8 +9,8 @@ commit.  ``raw_recompute_execute`` claims the row with a conditional UPDATE and 
 the outputs with a second conditional UPDATE, so a task delivered twice leaves one
 result (the row is one per record: a OneToOne).
 
-The claim follows the analysis runs' protocol (``analysis.services``; issue 17 unifies
-the two): a running row may be taken over when its heartbeat is stale or by a
+The claim follows the analysis runs' protocol (``analysis.services``; one
+helper is to serve both): a running row may be taken over when its heartbeat is stale or by a
 redelivery of the task that claimed it, and ``raw_sweep`` (Celery beat) re-queues the
 rows whose worker was lost.  The claim's ``started_at`` is the token ``_finish`` checks.
 """
@@ -101,7 +101,7 @@ def raw_declared_too_large(meta: Mapping[str, Any]) -> str | None:
 
 
 def raw_point_find(participant: Participant, fields: Mapping[str, Any]) -> MeasurementPoint:
-    """The comparison's point named like a results-table row (formats.md §1 columns)."""
+    """The comparison's point named like a results-table row (docs/interfaces.md §1 columns)."""
     found = MeasurementPoint.objects.filter(
         comparison=participant.comparison,
         device__name=fields["device"],
@@ -249,7 +249,7 @@ def _recomputation_create(record: RawRecord, result: Result) -> RawRecomputation
 
 
 def _parameters(record: RawRecord) -> dict[str, Any]:
-    """Everything that determines the result, with the files by hash (formats.md §2)."""
+    """Everything that determines the result, with the files by hash (docs/interfaces.md §2)."""
     return {
         "method": METHOD,
         "data_sha256": record.data_file.sha256,

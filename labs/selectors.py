@@ -197,7 +197,7 @@ TEMPLATE_COLUMNS = [c for c in COLUMNS if c != "lab"]
 
 
 def results_template(comparison: Comparison, *, format: str) -> bytes:
-    """The results table of formats.md §1 with one row per measurement point, sensitivity
+    """The results table of docs/interfaces.md §1 with one row per measurement point, sensitivity
     and U left empty, k = 2 filled in (the web download and the API serve the same file)."""
     points = comparison.measurement_points.select_related("device").order_by(
         "device__name", "bench", "direction", "axis", "frequency_hz", "amplitude_m_s2", "pk"

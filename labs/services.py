@@ -357,7 +357,7 @@ def submission_from_file(
     submit: bool,
     idempotency_key: str = "",
 ) -> Submission:
-    """A CSV/XLSX upload (formats.md §1): parse against the comparison, then save."""
+    """A CSV/XLSX upload (docs/interfaces.md §1): parse against the comparison, then save."""
     table = comparison_table(participant.comparison)
     try:
         rows = parse_table(data, filename=filename, lab_column="forbidden", context=table.context)

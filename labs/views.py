@@ -1,4 +1,4 @@
-"""Web pages of the laboratories (issue 4): dashboard, comparison, results grid, upload,
+"""Web pages of the laboratories: dashboard, comparison, results grid, upload,
 template download, submission history and API keys.
 
 Thin views: find what the user may see (404 otherwise, also for other labs' objects),
@@ -357,7 +357,7 @@ def api_key_revoke(request: HttpRequest, lab_pk: int, prefix: str) -> HttpRespon
     return render(request, "labs/api_key_revoke.html", {"lab": lab, "key": key})
 
 
-# --- raw records behind a result (issue 7 item 8) ------------------------------------------
+# --- raw records behind a result ------------------------------------------
 
 
 def _raw_page(

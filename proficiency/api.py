@@ -1,5 +1,5 @@
 """Coordinator setup API: create a comparison, add devices, generate the point grid, invite
-laboratories (formats.md §3, extended). Thin views over ``proficiency.services`` and
+laboratories (docs/interfaces.md §3, extended). Thin views over ``proficiency.services`` and
 ``labs.services``; the same rules as the coordinator pages."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Coordinator web pages (issue 5): dashboard, comparison setup, invitations, review.
+"""Coordinator web pages: dashboard, comparison setup, invitations, review.
 
 Thin views: find the comparison the user coordinates (404 for anyone else, also for the
 coordinator of another comparison), call one service, render.  The analysis and results
@@ -399,7 +399,7 @@ def result_check(request: HttpRequest, code: str, pk: int) -> HttpResponse:
                     version=s.version)  # fmt: skip
 
 
-# --- raw records (issue 7 item 8) ----------------------------------------------------------
+# --- raw records ----------------------------------------------------------
 
 RAW_PER_PAGE = 10
 

@@ -1,8 +1,8 @@
-"""Demo data: the seed study (domain.md §8) as comparison IMU-2024-DEMO.
+"""Demo data: the seed study (docs/domain.md §8) as comparison IMU-2024-DEMO.
 
 Two laboratories reproduce Chiominto et al. 2024: a linear-bench lab and a
 curvilinear-bench lab whose per-frequency (and per-direction) results aggregate,
-with the rule of domain.md §3, exactly to Table 1 of the reference data.  Ten
+with the rule of docs/domain.md §3, exactly to Table 1 of the reference data.  Ten
 synthetic laboratories add plausible scatter on both benches; one of them
 (``Outlier Metrology Services``) is a clear outlier on MEMS 2.  Everything is
 created idempotently: running the loader twice leaves the same rows.
@@ -114,7 +114,7 @@ def _offsets(point: MeasurementPoint, mean: float) -> float:
 def reproduction_results(
     points: list[MeasurementPoint], bench: str
 ) -> list[tuple[MeasurementPoint, float, float]]:
-    """Results of one bench lab that aggregate (domain.md §3) exactly to Table 1.
+    """Results of one bench lab that aggregate (docs/domain.md §3) exactly to Table 1.
 
     Within each (device, axis) the offsets have mean zero, so x̄ is the Table 1
     value; every result gets the same u_i = √(u_T1² − s²), so that

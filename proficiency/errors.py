@@ -1,7 +1,7 @@
 """One error hierarchy for business rules, mapped to HTTP by one DRF exception handler.
 
 Services raise these; views and API views never build error responses by hand.
-The JSON shape is the one promised in formats.md §3:
+The JSON shape is the one promised in docs/interfaces.md §3:
 ``{"detail": "...", "errors": [{"row": 7, "field": "...", "message": "..."}]}``.
 """
 
@@ -25,7 +25,7 @@ class ApplicationError(Exception):
     def __init__(self, message: str, *, errors: list[dict[str, Any]] | None = None) -> None:
         super().__init__(message)
         self.message = message
-        # formats.md §3: every error has row, field and message (row None when not a row's)
+        # docs/interfaces.md §3: every error has row, field and message (row None when not a row's)
         self.errors = [{"row": None, "field": None, **e} for e in errors or []]
 
 
@@ -93,7 +93,7 @@ def api_exception_handler(exc: Exception, context: dict[str, Any]) -> Response |
 
 
 def _rows(data: Any, field: str | None = None) -> list[dict[str, Any]]:
-    """``{"field": ["message", ...]}`` or ``["message"]`` -> formats.md §3 error rows."""
+    """``{"field": ["message", ...]}`` or ``["message"]`` -> docs/interfaces.md §3 error rows."""
     if isinstance(data, dict):
         return [e for key, value in data.items() for e in _rows(value, str(key))]
     if isinstance(data, list):

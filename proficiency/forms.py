@@ -190,7 +190,7 @@ class DecisionForm(BootstrapMixin, forms.Form):
 
 
 class ReportNotesForm(BootstrapMixin, forms.Form):
-    """The coordinator's comments and conclusions and the reports' authoriser (domain.md §9).
+    """The coordinator's comments and conclusions and the reports' authoriser (docs/domain.md §9).
     Plain text: it is escaped when printed."""
 
     comments = forms.CharField(

@@ -132,7 +132,7 @@ class ControlCharacters(ValidationFailed, BadRequest):
 
 
 def control_errors(pairs: Iterable[tuple[str, str]]) -> list[dict[str, Any]]:
-    """formats.md §3 error rows for the (field, text) pairs with a control character; a
+    """docs/interfaces.md §3 error rows for the (field, text) pairs with a control character; a
     field's name is checked too (then the error names it with the character escaped)."""
     errors = []
     for name, value in pairs:

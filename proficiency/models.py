@@ -27,7 +27,7 @@ class ComparisonStatus(models.TextChoices):
 
 
 class AssignedValueMethod(models.TextChoices):
-    """domain.md §5."""
+    """docs/domain.md §5."""
 
     REFERENCE = "reference", "Reference laboratory (pilot)"
     NOMINAL = "nominal", "Nominal value with tolerance"
@@ -99,7 +99,7 @@ class Comparison(models.Model):
     coordinators = models.ManyToManyField(
         settings.AUTH_USER_MODEL, blank=True, related_name="coordinated_comparisons"
     )
-    # Printed in the reports (domain.md §9); edited by the coordinators, audit-logged.
+    # Printed in the reports (docs/domain.md §9); edited by the coordinators, audit-logged.
     report_comments = models.TextField(
         blank=True, help_text="Comments on performance and advice on interpretation."
     )

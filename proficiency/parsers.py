@@ -2,7 +2,7 @@
 
 A JSON string (a value or a key) or a form field with a C0 control character other than
 tab, LF and CR is a 400 naming its place (``results[3].note``), in the error shape of
-formats.md §3, instead of a database error (PostgreSQL refuses NUL in text).
+docs/interfaces.md §3, instead of a database error (PostgreSQL refuses NUL in text).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The seed protocols (domain.md §8) as ready-made comparison templates.
+"""The seed protocols (docs/domain.md §8) as ready-made comparison templates.
 
 A template says which benches, frequencies, directions and axes a comparison
 measures and what excitation each point gets.  Expected amplitudes are computed
@@ -31,7 +31,7 @@ IEPE_RADIUS_M = 0.145
 def linear_components(
     a_ref: float, tilt_deg: float, rotation_deg: float
 ) -> tuple[float, float, float]:
-    """Expected (a_x, a_y, a_z) peak amplitudes on the tilted plate (domain.md §8.1)."""
+    """Expected (a_x, a_y, a_z) peak amplitudes on the tilted plate (docs/domain.md §8.1)."""
     theta, alpha = math.radians(tilt_deg), math.radians(rotation_deg)
     return (
         abs(a_ref * math.sin(theta) * math.cos(alpha)),
@@ -43,7 +43,8 @@ def linear_components(
 def curvilinear_amplitudes(
     frequency_hz: float, swing_deg: float, radius_m: float = MEMS_RADIUS_M
 ) -> tuple[float, float]:
-    """(tangential amplitude, radial peak) in m/s² for a peak-to-peak swing (domain.md §8.2)."""
+    """(tangential amplitude, radial peak) in m/s² for a peak-to-peak swing
+    (docs/domain.md §8.2)."""
     theta0 = math.radians(swing_deg) / 2.0
     omega = 2.0 * math.pi * frequency_hz
     omega0 = omega * theta0

@@ -144,7 +144,7 @@ def _check_grid(
 def comparison_apply_template(
     *, comparison: Comparison, template_key: str, devices: Sequence[Device]
 ) -> list[MeasurementPoint]:
-    """Generate the measurement points of a seed protocol (domain.md §8) for ``devices``."""
+    """Generate the measurement points of a seed protocol (docs/domain.md §8) for ``devices``."""
     try:
         template = protocols.TEMPLATES[template_key]
     except KeyError:

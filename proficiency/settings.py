@@ -257,9 +257,9 @@ SPECTACULAR_SETTINGS = {
     ],
 }
 
-# Uploads: refused above this size before parsing (formats.md §1, issue rules).
+# Uploads: refused above this size before parsing (docs/interfaces.md §1, issue rules).
 MAX_UPLOAD_BYTES = env.int("MAX_UPLOAD_BYTES", default=5 * 1024 * 1024)
-# Raw time series (formats.md §2): per file, refused before the body is read.
+# Raw time series (docs/interfaces.md §2): per file, refused before the body is read.
 RAW_UPLOAD_MAX_BYTES = env.int("RAW_UPLOAD_MAX_BYTES", default=50 * 1024 * 1024)
 DATA_UPLOAD_MAX_MEMORY_SIZE = env.int("DATA_UPLOAD_MAX_MEMORY_SIZE", default=20 * 1024 * 1024)
 FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024

@@ -1,4 +1,4 @@
-"""The pure core stays free of Django (style.md: the arrows point one way)."""
+"""The pure core stays free of Django (docs/architecture.md §1: the arrows point one way)."""
 
 import ast
 from pathlib import Path

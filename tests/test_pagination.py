@@ -1,4 +1,4 @@
-"""Pagination (issue #9 item 6): every list page and endpoint that grows without bound
+"""Pagination: every list page and endpoint that grows without bound
 serves a fixed page size, and its next-page link leads to the rest.
 
 Rows are added in bulk to the security world (``tests/security/world.py``); each test

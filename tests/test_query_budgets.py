@@ -1,4 +1,4 @@
-"""Query budgets (issue #9 item 6): the main pages and endpoints run the same number of SQL
+"""Query budgets: the main pages and endpoints run the same number of SQL
 queries whatever the number of rows behind them (no N+1), and stay under a stated budget.
 
 Each route is measured twice on the security world (``tests/security/world.py``): once at

@@ -41,7 +41,7 @@ class ScoreSerializer(serializers.ModelSerializer):
 
 
 class MatrixSerializer(serializers.Serializer):
-    """Documentation shape of one compatibility matrix (formats.md §4 keys)."""
+    """Documentation shape of one compatibility matrix (docs/interfaces.md §4 keys)."""
 
     factor = serializers.CharField()
     group = serializers.DictField()

@@ -1,4 +1,4 @@
-"""Coordinator routes under ``/api/v1/`` (formats.md §3 names)."""
+"""Coordinator routes under ``/api/v1/`` (docs/interfaces.md §3 names)."""
 
 from django.urls import path
 

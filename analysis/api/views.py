@@ -1,4 +1,4 @@
-"""Coordinator API (formats.md §3): analysis runs, scores, compatibility, publication,
+"""Coordinator API (docs/interfaces.md §3): analysis runs, scores, compatibility, publication,
 life-cycle transitions and submission review.
 
 Participants see scores and matrices only after publication, their own scores only,

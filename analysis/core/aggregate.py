@@ -1,4 +1,4 @@
-"""Aggregation of several results of the same quantity into one mean (domain.md §3).
+"""Aggregation of several results of the same quantity into one mean (docs/domain.md §3).
 
 The seed study (Chiominto et al., Micromachines 15:727, 2024, Table 1 "Total"
 columns) pools repetitions, frequencies and directions of one device and axis
@@ -36,7 +36,7 @@ class Aggregate:
 
 
 def aggregate(x: ArrayLike, u: ArrayLike, groups: Groups, k: float = 2.0) -> Aggregate:
-    """Mean and uncertainty of each group by the rule of domain.md §3.
+    """Mean and uncertainty of each group by the rule of docs/domain.md §3.
 
     ``x`` and ``u`` (standard uncertainties, > 0) have one entry per result;
     ``groups`` assigns each result to a group, and every group must hold at

@@ -1,4 +1,4 @@
-"""Degrees of equivalence and compatibility matrices (domain.md §6).
+"""Degrees of equivalence and compatibility matrices (docs/domain.md §6).
 
 Pairwise normalised error between two results (ISO 13528:2022 §9.7,
 Formula (20), applied lab against lab as in its 10.7.1; Chiominto et al.,
@@ -8,7 +8,7 @@ Micromachines 15:727, 2024, Table 2):
 
 A compatibility matrix compares the levels of one factor (lab, axis,
 frequency, device, bench, direction) within groups given by other label
-columns; each level is first aggregated by the rule of domain.md §3
+columns; each level is first aggregated by the rule of docs/domain.md §3
 (:func:`analysis.core.aggregate.aggregate`).
 """
 
@@ -176,7 +176,7 @@ def degrees_of_equivalence(
     *,
     pairwise: bool = True,
 ) -> DegreesOfEquivalence:
-    """Degrees of equivalence, domain.md §6 (CIPM MRA key comparison convention).
+    """Degrees of equivalence, docs/domain.md §6 (CIPM MRA key comparison convention).
 
     Unilateral: d_i = x_i − x_pt, U(d_i) = k·u(d_i), u²(d_i) = u_i² + u_pt², or
     u_i² − u_pt² where ``contributes[i]`` (the result is part of a weighted-mean
@@ -238,7 +238,7 @@ class CompatibilityMatrix:
 
 
 def default_by(factor: str) -> tuple[str, ...]:
-    """Default grouping keys of formats.md §4: device and axis less the factor; for
+    """Default grouping keys of docs/interfaces.md §4: device and axis less the factor; for
     ``lab`` the whole measurement point."""
     col = _factor_column(factor)
     if col == "lab":
@@ -254,7 +254,7 @@ def compatibility_matrices(
     k: float = 2.0,
     limit: float = 1.0,
 ) -> list[CompatibilityMatrix]:
-    """Compatibility matrices of ``factor`` per by-group (domain.md §6, formats.md §4).
+    """Compatibility matrices of ``factor`` per by-group (docs/domain.md §6, docs/interfaces.md §4).
 
     ``table`` is columnar: equal-length 1-D arrays ``value`` and
     ``standard_uncertainty`` (one entry per result) plus the label columns the
@@ -340,7 +340,7 @@ def against_reference(
     """En of each level of ``matrix`` against a reference x_ref with u(x_ref).
 
     U(x_ref) = k·u(x_ref), k defaulting to the matrix's coverage factor.  For
-    the manufacturer's nominal 418 ± 1 % rectangular (domain.md §3):
+    the manufacturer's nominal 418 ± 1 % rectangular (docs/domain.md §3):
     ``against_reference(m, 418.0, 4.18 / math.sqrt(3))``.  ``d`` is signed
     (level − reference), ``en`` = |d| / √(U² + U_ref²), compatible when ≤ limit.
     """

@@ -2,7 +2,7 @@
 
 Mandel's h and k, Grubbs' single and double tests and Cochran's C, each for many
 measurement points (groups) at once, with critical values at 5 % (straggler) and
-1 % (outlier).  Also the stability check of domain.md §7 and the combination of
+1 % (outlier).  Also the stability check of docs/domain.md §7 and the combination of
 the components of u(x_pt).
 
 Where a test cannot be run (too few laboratories or results) the result carries
@@ -446,7 +446,7 @@ def cochran_cells(cells: Cells) -> Cochran:
 
 @dataclass(frozen=True)
 class Stability:
-    """Artefact stability per measurement point (domain.md §7): drift ``delta`` = ybar_after
+    """Artefact stability per measurement point (docs/domain.md §7): drift ``delta`` = ybar_after
     - ybar_before, ``en`` = |delta| / sqrt(U_before^2 + U_after^2), ``stable`` and the
     uncertainty contribution ``u_stab`` (|delta|/sqrt(3) where unstable, else 0)."""
 
@@ -479,7 +479,7 @@ def stability_check(
     *,
     k: float = 2.0,
 ) -> Stability:
-    """Stability of the travelling artefact, domain.md §7 (ISO 13528:2022 Annex B.5 idea).
+    """Stability of the travelling artefact, docs/domain.md §7 (ISO 13528:2022 Annex B.5 idea).
 
     Without ``groups`` every array has one entry per measurement point.  With ``groups``
     (one shared, or a (before, after) pair) ``before``/``after`` are the pilot's
@@ -504,7 +504,7 @@ def stability_check(
 def combine_assigned_uncertainty(
     u_char: ArrayLike, u_hom: ArrayLike = 0.0, u_stab: ArrayLike = 0.0
 ) -> FloatArray:
-    """u(x_pt) = sqrt(u_char^2 + u_hom^2 + u_stab^2), ISO 13528:2022 §7.2.2 / domain.md §5."""
+    """u(x_pt) = sqrt(u_char^2 + u_hom^2 + u_stab^2), ISO 13528:2022 §7.2.2 / docs/domain.md §5."""
     parts = [np.asarray(v, dtype=np.float64) for v in (u_char, u_hom, u_stab)]
     for name, v in zip(("u_char", "u_hom", "u_stab"), parts, strict=True):
         bad = ~np.isfinite(v) | (v < 0)

@@ -1,4 +1,4 @@
-"""Compatibility matrices from per-point sufficient statistics (domain.md §3, §6).
+"""Compatibility matrices from per-point sufficient statistics (docs/domain.md §3, §6).
 
 A fanned-out analysis sees the results one chunk of measurement points at a
 time.  The §3 aggregate of a matrix level (mean x̄, mean standard uncertainty

@@ -597,7 +597,7 @@ def _stability(rows: tuple[StabilityRow, ...]) -> str:
     return homogeneity + (
         f"Stability: the pilot measured the artefacts before and after circulation at "
         f"{len(rows)} measurement point(s); {len(rows) - bad} are stable (|Δ| ≤ 0.3·σ_pt or "
-        f"En ≤ 1, domain.md §7) and {bad} are not. At an unstable point the drift adds "
+        f"En ≤ 1, docs/domain.md §7) and {bad} are not. At an unstable point the drift adds "
         "u_stab = |Δ|/√3, listed below, to u(x_pt) = √(u_char² + u_hom² + u_stab²)."
     )
 

@@ -1,4 +1,4 @@
-"""The plain data a PT report needs (domain.md §9): frozen dataclasses, no ORM objects."""
+"""The plain data a PT report needs (docs/domain.md §9): frozen dataclasses, no ORM objects."""
 
 from __future__ import annotations
 
@@ -59,7 +59,7 @@ class ResultRow:
 
 @dataclass(frozen=True)
 class AssignedRow:
-    """x_pt, u(x_pt), the method and σ_pt of one point (domain.md §5)."""
+    """x_pt, u(x_pt), the method and σ_pt of one point (docs/domain.md §5)."""
 
     point: int
     value: float
@@ -79,7 +79,7 @@ class AssignedRow:
 
 @dataclass(frozen=True)
 class ScoreRow:
-    """Scores of one result (domain.md §4); ``z`` holds z or z′ (``z_kind`` says which)."""
+    """Scores of one result (docs/domain.md §4); ``z`` holds z or z′ (``z_kind`` says which)."""
 
     point: int
     lab: str
@@ -98,7 +98,7 @@ class ScoreRow:
 
 @dataclass(frozen=True)
 class StabilityRow:
-    """The pilot's mean before and after circulation at one point (domain.md §7):
+    """The pilot's mean before and after circulation at one point (docs/domain.md §7):
     Δ = after − before, En of the two, the 0.3·σ_pt limit (None without σ_pt), the verdict
     and u_stab = |Δ|/√3 when unstable (else 0)."""
 
@@ -114,7 +114,7 @@ class StabilityRow:
 
 @dataclass(frozen=True)
 class MatrixData:
-    """Pairwise En between the levels of one factor within one group (domain.md §6)."""
+    """Pairwise En between the levels of one factor within one group (docs/domain.md §6)."""
 
     factor: str
     group: str

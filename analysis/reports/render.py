@@ -1,4 +1,4 @@
-"""Render a PT report (domain.md §9) to PDF bytes with reportlab platypus.
+"""Render a PT report (docs/domain.md §9) to PDF bytes with reportlab platypus.
 
 Pure: :class:`~analysis.reports.data.ReportData` in, bytes out, no Django.  Output is
 byte-stable: ``rl_config.invariant = 1`` removes the random document id, the creation
@@ -158,7 +158,7 @@ def _subject(data: ReportData) -> str:
 
 
 def story(data: ReportData) -> list[Flowable]:
-    """Every section of domain.md §9 in order, ending with the end-of-report mark."""
+    """Every section of docs/domain.md §9 in order, ending with the end-of-report mark."""
     flow: list[Flowable] = sections.title_page(data)
     flow += [PageBreak()]
     flow += sections.confidentiality(data)

@@ -1,4 +1,4 @@
-"""The sections of a PT report (domain.md §9) as lists of platypus flowables."""
+"""The sections of a PT report (docs/domain.md §9) as lists of platypus flowables."""
 
 from __future__ import annotations
 
@@ -295,7 +295,7 @@ def assigned_values(data: ReportData) -> list[Flowable]:
 
 
 def results_and_scores(data: ReportData) -> list[Flowable]:
-    """Per device: every result (value, U, k) with its scores and flag (domain.md §4)."""
+    """Per device: every result (value, U, k) with its scores and flag (docs/domain.md §4)."""
     scores = {(s.point, s.lab): s for s in data.scores}
     flow: list[Flowable] = [
         para("6 Results and scores", "h1"),
@@ -508,7 +508,7 @@ CONSISTENCY = (
 
 
 def consistency(data: ReportData) -> list[Flowable]:
-    """The points where an ISO 5725-2 test signals, one row per finding (domain.md §6)."""
+    """The points where an ISO 5725-2 test signals, one row per finding (docs/domain.md §6)."""
     flow: list[Flowable] = [para("8 Consistency of the results (ISO 5725-2)", "h1"),
                             para(CONSISTENCY)]  # fmt: skip
     c = data.consistency

@@ -83,7 +83,7 @@ def report_notes_update(
     user: object | None = None,
 ) -> Comparison:
     """Store the coordinator's comments, conclusions and the report's authoriser
-    (domain.md §9), audit-logged with ``user`` as actor. Reports already issued keep
+    (docs/domain.md §9), audit-logged with ``user`` as actor. Reports already issued keep
     their text; a reissue prints the new one."""
     locked = Comparison.objects.select_for_update().get(pk=comparison.pk)
     name, role = authorised_by_name.strip(), authorised_by_role.strip()

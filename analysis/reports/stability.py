@@ -1,4 +1,4 @@
-"""Artefact stability for the report (domain.md §7): the pilot's before/after results per
+"""Artefact stability for the report (docs/domain.md §7): the pilot's before/after results per
 measurement point, checked with :func:`analysis.core.consistency.stability_check`."""
 
 from __future__ import annotations

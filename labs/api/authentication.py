@@ -1,4 +1,4 @@
-"""``Authorization: Api-Key <key>`` authentication for lab software (formats.md §3).
+"""``Authorization: Api-Key <key>`` authentication for lab software (docs/interfaces.md §3).
 
 A key belongs to one laboratory. A request authenticated by a key gets
 ``request.auth`` = the :class:`~labs.models.LabAPIKey` and ``request.user`` = a

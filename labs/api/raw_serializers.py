@@ -1,7 +1,7 @@
-"""Request and response shapes of ``/api/v1/comparisons/{code}/raw-data/`` (issue 7 item 8).
+"""Request and response shapes of ``/api/v1/comparisons/{code}/raw-data/``.
 
-The measurement point is named by the results-table columns (formats.md §1); the
-metadata keys of formats.md §2 may come as form fields (they replace the sidecar's).
+The measurement point is named by the results-table columns (docs/interfaces.md §1); the
+metadata keys of docs/interfaces.md §2 may come as form fields (they replace the sidecar's).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from labs.api.serializers import _inline_enum
 from labs.models import RawFile, RawRecomputation, RawRecord
 from proficiency.models import Axis, Bench, Direction
 
-_META_HELP = "formats.md §2 metadata key; replaces the sidecar's"
+_META_HELP = "docs/interfaces.md §2 metadata key; replaces the sidecar's"
 
 
 def _meta_field(help_text: str = _META_HELP) -> serializers.CharField:

@@ -1,4 +1,4 @@
-"""``/api/v1/comparisons/{code}/raw-data/``: raw records behind a result (issue 7 item 8).
+"""``/api/v1/comparisons/{code}/raw-data/``: raw records behind a result.
 
 A participant uploads and lists its own records; a coordinator lists every
 participant's (by code); another laboratory's record is 404.

@@ -1,6 +1,6 @@
 """Request and response shapes of the API (documented in the OpenAPI schema).
 
-Results use the column names of the results table (formats.md §1), so a row
+Results use the column names of the results table (docs/interfaces.md §1), so a row
 read from the API can be written back into a table and vice versa.
 """
 
@@ -32,7 +32,7 @@ class ErrorSerializer(serializers.Serializer):
 
 
 def as_row_errors(errors: dict[str, Any]) -> list[dict[str, object]]:
-    """DRF serializer errors -> the ``errors`` list of formats.md §3."""
+    """DRF serializer errors -> the ``errors`` list of docs/interfaces.md §3."""
     out: list[dict[str, object]] = []
     for field, messages in errors.items():
         for message in messages if isinstance(messages, list) else [messages]:
@@ -197,7 +197,7 @@ class ResultRowInSerializer(serializers.Serializer):
 
 
 class RowsField(serializers.ListField):
-    """A JSON array, passed on untouched: the importer validates each row (formats.md §1)."""
+    """A JSON array, passed on untouched: the importer checks each row (docs/interfaces.md §1)."""
 
     def to_internal_value(self, data: Any) -> list[Any]:
         if not isinstance(data, list):
@@ -209,7 +209,7 @@ class SubmissionRequestSerializer(serializers.Serializer):
     results = RowsField(
         child=ResultRowInSerializer(),
         help_text="One object per result, keys as the columns of the results table "
-        "(formats.md §1; `lab` is not allowed). Numbers may be JSON numbers or strings.",
+        "(docs/interfaces.md §1; `lab` is not allowed). Numbers may be JSON numbers or strings.",
     )
     submit = serializers.BooleanField(
         default=True,
@@ -219,7 +219,7 @@ class SubmissionRequestSerializer(serializers.Serializer):
 
 
 class UploadRequestSerializer(serializers.Serializer):
-    file = serializers.FileField(help_text="Results table, CSV or XLSX (formats.md §1)")
+    file = serializers.FileField(help_text="Results table, CSV or XLSX (docs/interfaces.md §1)")
     submit = serializers.BooleanField(default=True)
 
 

@@ -1,4 +1,4 @@
-"""``/api/v1/`` routes (formats.md §3: these names are a promise)."""
+"""``/api/v1/`` routes (docs/interfaces.md §3: these names are a promise)."""
 
 from django.urls import path
 

@@ -1,4 +1,4 @@
-"""API views (formats.md §3): validate input, call one service or selector, serialise.
+"""API views (docs/interfaces.md §3): validate input, call one service or selector, serialise.
 
 Errors are raised, never built here: ApplicationError subclasses and DRF's own
 exceptions are turned into ``{"detail", "errors"}`` by
@@ -239,7 +239,7 @@ class XLSXRenderer(CSVRenderer):
     },
 )
 class ResultsTemplate(ApiView):
-    """The results table (formats.md §1) pre-filled with the measurement points; fill in
+    """The results table (docs/interfaces.md §1) pre-filled with the measurement points; fill in
     `sensitivity` and `expanded_uncertainty` and upload it."""
 
     renderer_classes = [CSVRenderer, XLSXRenderer]
@@ -324,7 +324,7 @@ class SubmissionCollection(ApiView, ValuesListView):
     responses={201: s.SubmissionSerializer, **SUBMIT_ERRORS, **AUTH_ERRORS, **NOT_VISIBLE},
 )
 class SubmissionUpload(ApiView):
-    """Submit a results file (CSV or XLSX, formats.md §1), same rules as JSON."""
+    """Submit a results file (CSV or XLSX, docs/interfaces.md §1), same rules as JSON."""
 
     parser_classes = [MultiPartParser, FormParser]
 

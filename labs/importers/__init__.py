@@ -1,6 +1,6 @@
 """Results-table importer: CSV/XLSX/JSON -> validated rows + row errors, no ORM, no Django.
 
-See :mod:`labs.importers.table` for the entry points and formats.md §1 for the columns.
+See :mod:`labs.importers.table` for the entry points and docs/interfaces.md §1 for the columns.
 """
 
 from .errors import ImportErrors, RowError

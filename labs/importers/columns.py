@@ -321,7 +321,7 @@ def _assemble(
             expanded = sens * u[0] / 100 if u[1] else u[0]
         original_unit, given = None, sens
         if unit == MG_PER_LSB:
-            # The relative uncertainty is kept through the inversion (domain.md §2).
+            # The relative uncertainty is kept through the inversion (docs/domain.md §2).
             converted = mg_per_lsb_to_canonical(sens)
             expanded, sens = converted * expanded / sens, converted
             unit, original_unit = CANONICAL_UNIT, MG_PER_LSB

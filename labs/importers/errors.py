@@ -1,4 +1,4 @@
-"""Row errors of the results-table importer (formats.md §1 and §3).
+"""Row errors of the results-table importer (docs/interfaces.md §1 and §3).
 
 A table that does not fit is rejected whole: the importer collects every problem
 as a :class:`RowError` and raises one :class:`ImportErrors` carrying all of them.
@@ -24,7 +24,7 @@ class RowError:
     message: str
 
     def as_dict(self) -> dict[str, int | str | None]:
-        """The shape of one entry of the API's ``errors`` list (formats.md §3)."""
+        """The shape of one entry of the API's ``errors`` list (docs/interfaces.md §3)."""
         return {"row": self.row, "field": self.field, "message": self.message}
 
     def __str__(self) -> str:

@@ -2,7 +2,7 @@
 
 The web upload and the API hold a whole file in a server shared by everyone, so they
 refuse one over :data:`~labs.importers.MAX_BYTES` or :data:`~labs.importers.MAX_ROWS`.
-A file on one's own machine (``pt_compare``, formats.md §4) may be a whole national
+A file on one's own machine (``pt_compare``, docs/interfaces.md §4) may be a whole national
 round: it is read here in blocks, into one numpy array per column (no Python object
 per result outlives its block), with the upload's own checks and messages. No Django.
 
@@ -92,7 +92,7 @@ def read_local_table(
     lab_column: LabColumn = "required",
     block_bytes: int = BLOCK_BYTES,
 ) -> LocalTable:
-    """Read and check a CSV or XLSX results table (formats.md §1) from a local file.
+    """Read and check a CSV or XLSX results table (docs/interfaces.md §1) from a local file.
 
     Raises :class:`ImportErrors` with the first problems in row order and the count of
     all of them, exactly as an upload of the same file would list them.

@@ -9,7 +9,7 @@ worksheet rejects the file.
 Bounded work: a row with more than :data:`MAX_COLUMNS` cells (the most a worksheet can
 have) stops the reading at once, before the row is split into cells (CSV) or its
 cells parsed (XLSX, read cell by cell). Data rows keep only the cells under the
-header's named columns (at most one per column of formats.md §1); a row with
+header's named columns (at most one per column of docs/interfaces.md §1); a row with
 values elsewhere gets one error naming its number of cells and the header's.
 """
 

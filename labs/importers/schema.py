@@ -1,4 +1,4 @@
-"""The results table's columns, its row type and the comparison context (formats.md §1)."""
+"""The results table's columns, its row type and the comparison context (docs/interfaces.md §1)."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ DEFAULT_COVERAGE_FACTOR = 2.0
 
 
 class PointKey(NamedTuple):
-    """One measurement point (domain.md §2): device × axis × frequency × bench × direction."""
+    """One measurement point (docs/domain.md §2): device × axis × frequency × bench × direction."""
 
     device: str
     axis: str
@@ -92,7 +92,7 @@ class ResultRow:
 
     @property
     def standard_uncertainty(self) -> float:
-        """u = U / k (domain.md §3)."""
+        """u = U / k (docs/domain.md §3)."""
         return self.expanded_uncertainty / self.coverage_factor
 
     @property

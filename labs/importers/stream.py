@@ -1,4 +1,4 @@
-"""A long results table read and checked a chunk at a time (formats.md §1), no Django.
+"""A long results table read and checked a chunk at a time (docs/interfaces.md §1), no Django.
 
 :func:`parse_table` holds a whole table in memory, which suits one laboratory's
 upload. A coordinator's import of a whole round (a million rows) is read from a

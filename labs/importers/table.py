@@ -1,4 +1,4 @@
-"""Results tables (formats.md §1): parse CSV/XLSX/JSON into rows, write CSV/XLSX.
+"""Results tables (docs/interfaces.md §1): parse CSV/XLSX/JSON into rows, write CSV/XLSX.
 
 Pure Python, no Django: the web upload, the REST API and the offline
 ``pt_compare`` command all call :func:`parse_table` or :func:`parse_rows`,
@@ -172,7 +172,7 @@ def write_table(
 ) -> bytes:
     """Write a results table (downloads, templates) that :func:`parse_table` reads back.
 
-    ``columns`` defaults to every column of formats.md §1, ``lab``, ``repeat_sd`` and
+    ``columns`` defaults to every column of docs/interfaces.md §1, ``lab``, ``repeat_sd`` and
     ``n_repeats`` only when a row has one; mappings may carry other columns (scores).
     Numbers are written in full precision with a decimal point; text loses its control
     characters, then formula-like text gets a leading quote (:func:`~.values.escape_text`).

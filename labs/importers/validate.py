@@ -1,4 +1,5 @@
-"""The one validation of results rows, shared by CSV, XLSX and JSON input (formats.md §1)."""
+"""The one validation of results rows, shared by CSV, XLSX and JSON input
+(docs/interfaces.md §1)."""
 
 from __future__ import annotations
 
@@ -415,7 +416,7 @@ def validate_record(
     expanded = sensitivity * value / 100 if relative else value
     original_unit, given_sensitivity = None, sensitivity
     if unit == MG_PER_LSB:
-        # The relative uncertainty is kept through the inversion (domain.md §2).
+        # The relative uncertainty is kept through the inversion (docs/domain.md §2).
         converted = mg_per_lsb_to_canonical(sensitivity)
         expanded, sensitivity = converted * expanded / sensitivity, converted
         unit, original_unit = CANONICAL_UNIT, MG_PER_LSB

@@ -1,7 +1,7 @@
 """Cell values to typed values: numbers, text, units, formula escaping.
 
 Cells arrive as text (CSV, XLSX text cells, JSON strings) or as numbers (XLSX
-numeric cells, JSON numbers). Units follow domain.md §2.
+numeric cells, JSON numbers). Units follow docs/domain.md §2.
 """
 
 from __future__ import annotations
@@ -207,7 +207,7 @@ def normalise_unit(text: str, extra_units: Iterable[str] = ()) -> str:
 
 
 def mg_per_lsb_to_canonical(value: float) -> float:
-    """Invert a datasheet sensitivity: S = 1 / (v · 1e-3 · g) in D/(m/s²) (domain.md §2)."""
+    """Invert a datasheet sensitivity: S = 1 / (v · 1e-3 · g) in D/(m/s²) (docs/domain.md §2)."""
     return 1.0 / (value * 1e-3 * STANDARD_GRAVITY)
 
 

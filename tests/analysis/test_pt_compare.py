@@ -1,4 +1,4 @@
-"""The offline command pt_compare (formats.md §4) against the published reference data."""
+"""The offline command pt_compare (docs/interfaces.md §4) against the published reference data."""
 
 import csv
 import json

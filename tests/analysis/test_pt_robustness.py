@@ -1,4 +1,4 @@
-"""The offline command pt_robustness (formats.md §5, domain.md §8.3)."""
+"""The offline command pt_robustness (docs/interfaces.md §5, docs/domain.md §8.3)."""
 
 import json
 from io import StringIO

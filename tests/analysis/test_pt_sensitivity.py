@@ -1,4 +1,4 @@
-"""The offline command pt_sensitivity (formats.md §5) on synthetic files of known truth."""
+"""The offline command pt_sensitivity (docs/interfaces.md §5) on synthetic files of known truth."""
 
 import json
 import subprocess

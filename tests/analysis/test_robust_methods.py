@@ -1,5 +1,5 @@
-"""The robust assigned-value methods median (MADe), median-niqr and q-hampel (issue 16 item
-4): selectable in pt_compare, in a comparison's settings and per measurement point; a
+"""The robust assigned-value methods median (MADe), median-niqr and q-hampel:
+selectable in pt_compare, in a comparison's settings and per measurement point; a
 service run gives the offline tool's numbers, and the robust sigma_pt of a Q/Hampel point
 is the Q method's s*."""
 

@@ -1,4 +1,4 @@
-"""The three user journeys in real Chromium against pytest-django's live server (issue 8, item 6).
+"""The three user journeys in real Chromium against pytest-django's live server.
 
 1. A lab signs in, downloads the results template, uploads it with mistakes, reads the
    per-row errors, corrects the file and submits it.
@@ -33,7 +33,7 @@ pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
 PASSWORD = "correct horse battery staple"  # tests.factories.UserFactory's
 CODE = "IMU-BROWSER-01"
-# formats.md §1 without the coordinator-only `lab` column, in the spec's order, with the
+# docs/interfaces.md §1 without the coordinator-only `lab` column, in the spec's order, with the
 # optional repeatability columns (repeat_sd, n_repeats) before the note.
 TEMPLATE_HEADER = [
     "device", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2", "sensitivity",

@@ -14,7 +14,7 @@ CLEAN = Imperfections(noise_digits=1.5, quantise=True, seed=7)
 
 
 def int16_bytes(record: Record) -> bytes:
-    """Interleaved little-endian int16 (the MEMS output format, formats.md §2)."""
+    """Interleaved little-endian int16 (the MEMS output format, docs/interfaces.md §2)."""
     return np.ascontiguousarray(record.data.T).astype("<i2").tobytes()
 
 

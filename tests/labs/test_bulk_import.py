@@ -1,4 +1,4 @@
-"""A coordinator's streamed import of many participants' results (issue 9, item 3)."""
+"""A coordinator's streamed import of many participants' results."""
 
 import io
 

@@ -1,4 +1,4 @@
-"""Hostile results through every entry path (issue 15): the web upload and grid, the API
+"""Hostile results through every entry path: the web upload and grid, the API
 (JSON and file) and the downloads. Bounds are counts and ratios, never seconds.
 
 In CI these run on PostgreSQL (``.ci/run`` sets ``DATABASE_URL``), where a NUL byte that

@@ -1,4 +1,4 @@
-"""Results-table importer (formats.md §1): no database, no Django.
+"""Results-table importer (docs/interfaces.md §1): no database, no Django.
 
 Run with ``pytest tests/labs/test_importers.py -p no:django``.
 """

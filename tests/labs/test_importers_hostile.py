@@ -1,4 +1,4 @@
-"""Hostile results tables (issue 15): wide rows, error floods, extreme numbers, control
+"""Hostile results tables: wide rows, error floods, extreme numbers, control
 characters, formula injection in exports, non-ASCII digits. No database, no Django.
 
 Bounds are counts and ratios (cells parsed, errors listed, memory against a normal

@@ -198,7 +198,7 @@ def big_csv(n_rows: int) -> tuple[bytes, list[PointKey]]:
 
 
 def test_100k_row_csv_parses_to_100k_rows() -> None:
-    """Size, not time: the limit table of formats.md §1 is read whole (≈1 s on 2 cores)."""
+    """Size, not time: the limit table of docs/interfaces.md §1 is read whole (≈1 s on 2 cores)."""
     data, points = big_csv(100_000)
     assert len(data) < 5 * 2**20
     rows = parse_table(data, lab_column="forbidden", context=TableContext.from_points(points))

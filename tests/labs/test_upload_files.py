@@ -1,4 +1,5 @@
-"""Real CSV and XLSX files through the upload service (formats.md §1): all stored or none."""
+"""Real CSV and XLSX files through the upload service (docs/interfaces.md §1): all or none
+stored."""
 
 from __future__ import annotations
 

@@ -71,7 +71,7 @@ def test_demo_accounts_and_roles():
 
 
 def aggregate(values, u):
-    """domain.md §3, written out: mean, sqrt(mean(u)^2 + s^2) with s of ddof = 1."""
+    """docs/domain.md §3, written out: mean, sqrt(mean(u)^2 + s^2) with s of ddof = 1."""
     values, u = np.asarray(values), np.asarray(u)
     return values.mean(), np.sqrt(u.mean() ** 2 + values.std(ddof=1) ** 2)
 

@@ -1,4 +1,4 @@
-"""Measurement-point grid generation and the seed protocol templates (domain.md §8)."""
+"""Measurement-point grid generation and the seed protocol templates (docs/domain.md §8)."""
 
 import math
 

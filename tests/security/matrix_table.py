@@ -383,7 +383,7 @@ TABLE: dict[str, Row] = {
         post="401 405 405 405 405 405 405 401 405",
         other={"PUT": "401 403 403 403 200 404 403 401 200"},
     ),
-    # raw records (issue 7 item 8): lab B takes part in comparison 1 too; POST {} is an
+    # raw records: lab B takes part in comparison 1 too; POST {} is an
     # invalid form (200) for participants
     "lab/comparisons/<slug:code>/raw-data/": Row(
         get="302 200 200 200 404 404 302 302 404",
@@ -421,7 +421,7 @@ OPTIONAL = {"healthz", "healthz/"}
 
 
 #: After publication the participants read the results: lab B's pages then show every
-#: participant's results by code (as the summary report does, domain.md §9) but never a
+#: participant's results by code (as the summary report does, docs/domain.md §9) but never a
 #: laboratory's name, and nothing of lab A reaches coordinator 2 or a signed-out caller.
 PUBLISHED: dict[str, Row] = {
     "results/<slug:code>/": Row(get="302 200 200 200 404 404 302 302 404", post=""),

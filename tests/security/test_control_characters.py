@@ -3,7 +3,7 @@
 PostgreSQL cannot store NUL in text: each of these was a 500 on PostgreSQL (the schema
 fuzzer ran on SQLite, which stores NUL). Now a path with a C0 character is a 404, and a
 query parameter, form field or JSON string with a C0 character other than tab, LF and CR
-is a 400 naming the parameter, field or key path, in the error shape of formats.md §3.
+is a 400 naming the parameter, field or key path, in the error shape of docs/interfaces.md §3.
 """
 
 from urllib.parse import urlencode

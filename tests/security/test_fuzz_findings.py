@@ -1,6 +1,6 @@
 """What the schema fuzzer found, pinned as plain tests (each was a 500 or a malformed error).
 
-Every answer is now a 400 in the shape of formats.md §3, naming the field at fault.
+Every answer is now a 400 in the shape of docs/interfaces.md §3, naming the field at fault.
 """
 
 import pytest

@@ -1,4 +1,5 @@
-"""Raw time series → sensitivity and robustness figures (domain.md §8, formats.md §2, §5).
+"""Raw time series → sensitivity and robustness figures (docs/domain.md §8,
+docs/interfaces.md §2, §5).
 
 Pure numpy/scipy.  Modules: ``records`` (readers, validation), ``sinefit`` (IEEE 1057
 three-/four-parameter fits, rate estimate), ``paper`` (the study's scan and filters),

@@ -21,9 +21,9 @@ from analysis.core.uncertainty import coverage_factor, welch_satterthwaite
 
 REFERENCE_U_REL = 0.005
 """Relative standard uncertainty of the reference amplitude scale (reference transducer
-calibration, or a stated a_ref): 0.5 %, as the study's reference (domain.md §8.2)."""
+calibration, or a stated a_ref): 0.5 %, as the study's reference (docs/domain.md §8.2)."""
 ANGLE_TOL_DEG = 0.1
-"""Mounting angle tolerance ±0.1° (domain.md §8.1), rectangular."""
+"""Mounting angle tolerance ±0.1° (docs/domain.md §8.1), rectangular."""
 RADIUS_TOL_M = 0.5e-3
 """Radius tolerance ±0.5 mm, rectangular (an assumption: the study gives none)."""
 

@@ -1,4 +1,4 @@
-"""Curvilinear bench: oscillating rotating table (domain.md §8.2).
+"""Curvilinear bench: oscillating rotating table (docs/domain.md §8.2).
 
 θ(t) = θ0 cos(2πft): at radius r the tangential acceleration has amplitude
 r·θ0·(2πf)² at f, the radial one a 2f component of amplitude r·(2πfθ0)²/2.  The
@@ -45,7 +45,7 @@ def encoder_reference(theta0: float, f: float, r: float) -> tuple[float, float]:
 def curvilinear_sensitivity(
     mems: Record, reference: Record | None, method: Method
 ) -> SensitivityResult:
-    """Tangential (f) and radial (2f) sensitivities of one record (formats.md §5)."""
+    """Tangential (f) and radial (2f) sensitivities of one record (docs/interfaces.md §5)."""
     meta, where = mems.meta, mems.name
     if "frequency_hz" not in meta or "orientation" not in meta:
         raise SignalInputError(

@@ -1,4 +1,4 @@
-"""Linear bench: tilt plate on a vertical exciter (domain.md §8.1, ISO 16063-21 comparison).
+"""Linear bench: tilt plate on a vertical exciter (docs/domain.md §8.1, ISO 16063-21 comparison).
 
 Expected component amplitudes for a plate tilted by θ and rotated by α:
 
@@ -57,7 +57,7 @@ def log_derivatives(tilt_deg: float, rotation_deg: float) -> FloatArray:
 
 
 def linear_sensitivity(mems: Record, reference: Record | None, method: Method) -> SensitivityResult:
-    """Per-axis sensitivity of one linear-bench record (formats.md §5)."""
+    """Per-axis sensitivity of one linear-bench record (docs/interfaces.md §5)."""
     meta, where = mems.meta, mems.name
     f = float(need(meta, "frequency_hz", where, "the excitation frequency"))
     tilt = float(need(meta, "tilt_deg", where, "linear bench mounting angle θ"))

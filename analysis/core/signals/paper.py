@@ -1,4 +1,5 @@
-"""The study's processing ("paper mode"), kept to reproduce Chiominto et al. 2024 (domain.md §8).
+"""The study's processing ("paper mode"), kept to reproduce Chiominto et al. 2024
+(docs/domain.md §8).
 
 * Sampling rate: scan of candidate rates (1560–1760 Hz in 1 Hz steps) for the largest
   FFT amplitude at f.  The amplitude at f for a candidate rate fs_c is the one-bin DFT

@@ -1,4 +1,4 @@
-"""Raw time-series records (formats.md §2): CSV and little-endian int16 + JSON sidecar.
+"""Raw time-series records (docs/interfaces.md §2): CSV and little-endian int16 + JSON sidecar.
 
 A record is a 2-D float array (one row per channel) plus its metadata.  Readers
 validate the whole file with vectorised checks and raise :class:`SignalInputError`
@@ -90,7 +90,7 @@ _DIRECTIONS = ("tangential", "radial", "axial")
 
 
 def parse_meta(raw: Mapping[str, Any], where: str) -> dict[str, Any]:
-    """Validate metadata keys of formats.md §2; unknown keys are kept as they are."""
+    """Validate metadata keys of docs/interfaces.md §2; unknown keys are kept as they are."""
     meta = dict(raw)
     for key, positive in _NUMBER_KEYS.items():
         if meta.get(key) is None:
@@ -168,7 +168,7 @@ def _zones(value: Any, where: str) -> dict[str, tuple[float, float]]:
 
 
 def read_csv(content: bytes, name: str, meta: Mapping[str, Any] | None = None) -> Record:
-    """CSV with a header: optional ``t_s``, then one column per channel (formats.md §2)."""
+    """CSV with a header: optional ``t_s``, then one column per channel (docs/interfaces.md §2)."""
     text = content.decode("utf-8-sig", errors="strict")
     header, _, body = text.partition("\n")
     delim = ";" if ";" in header and "," not in header else ","
@@ -232,7 +232,7 @@ def _loadtxt(body: str, delim: str, columns: list[str], name: str) -> FloatArray
 
 def read_int16(content: bytes, name: str, meta: Mapping[str, Any]) -> Record:
     """Little-endian int16 samples interleaved channel by channel; ``meta['channels']``
-    (from the JSON sidecar) gives their names in file order (formats.md §2)."""
+    (from the JSON sidecar) gives their names in file order (docs/interfaces.md §2)."""
     m = parse_meta(meta, f"{name} sidecar")
     if "channels" not in m:
         raise SignalInputError(f"{name}: the sidecar must list 'channels' in file order")

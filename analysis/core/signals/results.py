@@ -19,7 +19,7 @@ NOT_EXCITED = "not excited"
 
 @dataclass(frozen=True)
 class AxisResult:
-    """Sensitivity of one MEMS axis at one mounting (formats.md §5 ``axes`` entry)."""
+    """Sensitivity of one MEMS axis at one mounting (docs/interfaces.md §5 ``axes`` entry)."""
 
     axis: str
     direction: str

@@ -1,4 +1,4 @@
-"""Vibration robustness figures (domain.md §8.3; IEC 60068-2-80 sine-on-random).
+"""Vibration robustness figures (docs/domain.md §8.3; IEC 60068-2-80 sine-on-random).
 
 Per repetition, with zones before / test / after and j the excited axis:
 

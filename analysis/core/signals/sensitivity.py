@@ -1,4 +1,4 @@
-"""Sensitivity of one raw record on its bench (formats.md §5, ``pt_sensitivity``)."""
+"""Sensitivity of one raw record on its bench (docs/interfaces.md §5, ``pt_sensitivity``)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ METHODS = ("sine-fit", "paper")
 def record_sensitivity(
     mems: Record, reference: Record | None = None, method: Method = "sine-fit"
 ) -> SensitivityResult:
-    """Dispatch on ``bench`` of the record's metadata (domain.md §8.1 / §8.2)."""
+    """Dispatch on ``bench`` of the record's metadata (docs/domain.md §8.1 / §8.2)."""
     if method not in METHODS:
         raise SignalInputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
     bench = mems.meta.get("bench")

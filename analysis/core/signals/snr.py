@@ -1,6 +1,6 @@
 """Signal-to-noise ratio equivalent to MATLAB ``snr(x, fs, n)`` (Signal Processing Toolbox).
 
-The procedure (domain.md §8.3): remove the mean; Kaiser window β = 38; one-sided
+The procedure (docs/domain.md §8.3): remove the mean; Kaiser window β = 38; one-sided
 periodogram (PSD, nfft = N); resolution bandwidth rbw = ENBW of the window.  The DC
 lobe is removed, the fundamental is the largest remaining peak and its power the
 integral of its main lobe (rolled down to the first local minima on both sides, at

@@ -1,7 +1,7 @@
 """Synthetic records of known truth (tests, benchmark and documentation).
 
 A MEMS record is what an LSM6DSR-like sensor would output on the benches of
-domain.md §8: digits = S · acceleration (+ gravity), with white noise, an optional
+docs/domain.md §8: digits = S · acceleration (+ gravity), with white noise, an optional
 second harmonic, rounding to int16 and a few dropped samples, sampled at an actual
 rate ``fs`` that differs from the nominal one written in the metadata.
 """

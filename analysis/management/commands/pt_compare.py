@@ -1,4 +1,5 @@
-"""python manage.py pt_compare RESULTS.csv — analyse a results table offline (formats.md §4).
+"""python manage.py pt_compare RESULTS.csv — analyse a results table offline
+(docs/interfaces.md §4).
 
 No database or server is used: the file is checked as the web upload checks it, but
 without the upload's size and row limits (a local file may be a whole national round),

@@ -1,6 +1,7 @@
-"""python manage.py pt_robustness BEFORE TEST AFTER [...] — vibration robustness (formats.md §5).
+"""python manage.py pt_robustness BEFORE TEST AFTER [...] — vibration robustness
+(docs/interfaces.md §5).
 
-RR, SR and SNR (domain.md §8.3) and the before/after compatibility of one repetition;
+RR, SR and SNR (docs/domain.md §8.3) and the before/after compatibility of one repetition;
 several triples give the tables of mean ± sd across repetitions.  A file whose
 metadata has ``zones`` holds a whole repetition by itself.  No database; exit code 2
 on bad input.

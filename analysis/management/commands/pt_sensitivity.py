@@ -1,7 +1,7 @@
-"""python manage.py pt_sensitivity FILE — sensitivity from one raw record (formats.md §5).
+"""python manage.py pt_sensitivity FILE — sensitivity from one raw record (docs/interfaces.md §5).
 
 No database or server: the record is read by ``analysis.core.signals.records`` and
-analysed by ``analysis.core.signals`` (domain.md §8.1–8.2).  Exit code 2 on bad input.
+analysed by ``analysis.core.signals`` (docs/domain.md §8.1–8.2).  Exit code 2 on bad input.
 """
 
 import json

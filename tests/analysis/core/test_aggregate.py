@@ -1,4 +1,4 @@
-"""Aggregation rule of domain.md §3: x̄, u(x̄) = √(ū² + s²), U = k·u(x̄)."""
+"""Aggregation rule of docs/domain.md §3: x̄, u(x̄) = √(ū² + s²), U = k·u(x̄)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Degrees of equivalence and compatibility matrices, domain.md §6."""
+"""Degrees of equivalence and compatibility matrices, docs/domain.md §6."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ from analysis.core.groups import CoreInputError, Groups
 
 REFERENCE_DATA = Path(__file__).resolve().parents[3].parent / "shared" / "spec" / "reference-data"
 NOMINAL = 418.0
-U_NOMINAL = 4.18 / math.sqrt(3)  # ±1 % rectangular, domain.md §3
+U_NOMINAL = 4.18 / math.sqrt(3)  # ±1 % rectangular, docs/domain.md §3
 
 
 def _csv(name: str) -> list[dict[str, str]]:

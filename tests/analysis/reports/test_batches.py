@@ -1,4 +1,4 @@
-"""Participant reports issued in batches (issue 9 item 4): one task per batch, idempotent
+"""Participant reports issued in batches: one task per batch, idempotent
 when delivered twice, the same bytes as the in-process render, the round's shared data
 read once per run, and a number of queries per batch that does not grow with the round."""
 

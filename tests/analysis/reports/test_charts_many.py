@@ -1,4 +1,4 @@
-"""Charts of many labs (issue 9): the error bars and the |En| bars drawn as one collection
+"""Charts of many labs: the error bars and the |En| bars drawn as one collection
 each give the same pixels as matplotlib's ``errorbar`` and ``bar`` (with the same "best"
 legend position), and a chart's cost no longer grows like matplotlib's per-bar artists."""
 

@@ -1,4 +1,4 @@
-"""The summary of a large round (issue 9, reports at scale): every result is listed from
+"""The summary of a large round (reports at scale): every result is listed from
 columns (:class:`ResultListing`), one page-sized table at a time, so the summary of a
 national round costs memory and time in proportion to its rows."""
 

@@ -1,4 +1,4 @@
-"""The rendered PDFs: every item of domain.md §9, the run's numbers, determinism, privacy."""
+"""The rendered PDFs: every item of docs/domain.md §9, the run's numbers, determinism, privacy."""
 
 import math
 import re

@@ -1,4 +1,4 @@
-"""A participant report's CPU does not grow with the round (issue 9): its charts are
+"""A participant report's CPU does not grow with the round: its charts are
 found, not rebuilt from round-sized tuples; table cells share their styles and repeated
 cells are formatted once per document; chart streams are stored as the bytes the PDF
 writer writes.  Each shortcut writes the bytes reportlab's own way writes."""
@@ -32,7 +32,7 @@ BAD = [(r, 2) for r, row in enumerate(ROWS) if row[2] == "action"]
 
 
 def commanded_table(rows, widths, own_rows, bad_cells) -> tables.FastTable:
-    """The table as :func:`sections.table` built it with style commands (before issue 9)."""
+    """The table as :func:`sections.table` built it with style commands (the older form)."""
     height = [sections.ROW_HEIGHT] * len(rows)
     t = tables.FastTable(rows, colWidths=list(widths), rowHeights=height, repeatRows=1)
     style = [

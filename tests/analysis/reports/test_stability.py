@@ -1,4 +1,4 @@
-"""Artefact stability in the report (domain.md §7) from the pilot's before/after values,
+"""Artefact stability in the report (docs/domain.md §7) from the pilot's before/after values,
 checked against hand calculations."""
 
 import math

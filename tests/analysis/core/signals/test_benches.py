@@ -1,4 +1,4 @@
-"""Linear and curvilinear benches on synthetic records of known truth (domain.md §8.1–8.2)."""
+"""Linear and curvilinear benches on synthetic records of known truth (docs/domain.md §8.1–8.2)."""
 
 import numpy as np
 import pytest
@@ -103,7 +103,7 @@ def test_iepe_reference_scaled_by_radius():
 
 
 def test_paper_mode_loses_amplitude_when_the_filter_is_designed_at_the_nominal_rate():
-    """The study's weakness (domain.md §8.1): at 1756.6 Hz actual, a band-pass designed
+    """The study's weakness (docs/domain.md §8.1): at 1756.6 Hz actual, a band-pass designed
     at 1660 Hz sees 10 Hz as 10·1660/1756.6 Hz and passes |H| of that, ≈ 0.66."""
     rec = linear_record(TRUTH, fs=1756.6, tilt=0, rotation=270, imp=Imperfections(gravity=False))
     z = rec.data[2]

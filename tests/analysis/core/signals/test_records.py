@@ -1,4 +1,4 @@
-"""Readers of raw records (formats.md §2): good files and every error case named by place."""
+"""Readers of raw records (docs/interfaces.md §2): good files and every error named by place."""
 
 import json
 

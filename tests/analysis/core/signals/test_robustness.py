@@ -1,4 +1,4 @@
-"""RR, SR, SNR and before/after compatibility against closed forms (domain.md §8.3)."""
+"""RR, SR, SNR and before/after compatibility against closed forms (docs/domain.md §8.3)."""
 
 import numpy as np
 import pytest
