@@ -597,8 +597,9 @@ def _stability(rows: tuple[StabilityRow, ...]) -> str:
     return homogeneity + (
         f"Stability: the pilot measured the artefacts before and after circulation at "
         f"{len(rows)} measurement point(s); {len(rows) - bad} are stable (|Δ| ≤ 0.3·σ_pt or "
-        f"En ≤ 1, docs/domain.md §7) and {bad} are not. At an unstable point the drift adds "
-        "u_stab = |Δ|/√3, listed below, to u(x_pt) = √(u_char² + u_hom² + u_stab²)."
+        f"En ≤ 1) and {bad} are not. The table below gives u_stab = |Δ|/√3 at each unstable "
+        "point; the scores of this round use u(x_pt) = u_char and do not include it, so a "
+        "score at an unstable point should be read with the drift in mind."
     )
 
 

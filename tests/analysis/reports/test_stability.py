@@ -46,3 +46,7 @@ def test_stability_table_matches_hand_calculation(analysed):
     text = " ".join("\n".join(pdf_text(render_report(data))).split())
     assert "2 measurement point(s); 1 are stable" in text
     assert f"+2 {b.en:.2f} {0.3 * sigma:.3g} no {2 / math.sqrt(3):.3g}" in text
+    # the scores use u(x_pt) = u_char (docs/domain.md §5.8): the report must not claim
+    # that the drift entered them
+    assert "the scores of this round use u(x_pt) = u_char and do not include it" in text
+    assert "drift adds" not in text
