@@ -363,19 +363,29 @@ def _weighted_mean_or_subset(x: FloatArray, u: FloatArray, groups: Groups) -> As
 
 
 def sigma_pt_values(
-    x: FloatArray, groups: Groups, values: AssignedValues, spec: SigmaPtSpec
+    x: FloatArray,
+    groups: Groups,
+    values: AssignedValues,
+    spec: SigmaPtSpec,
+    prescribed: FloatArray | None = None,
 ) -> FloatArray:
+    """σ_pt per point by ``spec``; where ``prescribed`` (per point, NaN for none) holds a
+    value, that value instead, and a robust s* of 0 there is no error (docs/domain.md §5.7)."""
+    own = np.full(groups.n_groups, np.nan) if prescribed is None else prescribed
+    has_own = np.isfinite(own)
     if spec.mode == "none":
-        return np.full(groups.n_groups, np.nan)
-    if spec.mode == "robust":
+        sigma = np.full(groups.n_groups, np.nan)
+    elif spec.mode == "robust":
         # Algorithm A's s*, except at points assigned by Q/Hampel: their Q method s*
         methods = point_methods(values, groups.n_groups)
         estimator = ["q_method" if m == "q_hampel" else "algorithm_a" for m in methods]
-        return robust.sigma_pt_robust(x, groups, estimator=estimator)
-    assert spec.value is not None
-    return av.sigma_pt_prescribed(
-        spec.value, groups.n_groups, x_pt=values.value, relative=spec.mode == "relative"
-    )
+        sigma = robust.sigma_pt_robust(x, groups, estimator=estimator, needed=~has_own)
+    else:
+        assert spec.value is not None
+        sigma = av.sigma_pt_prescribed(
+            spec.value, groups.n_groups, x_pt=values.value, relative=spec.mode == "relative"
+        )
+    return np.where(has_own, own, sigma)
 
 
 def overflowing_results(table: ResultTable) -> np.ndarray:

@@ -55,6 +55,7 @@ import proficiency
 from analysis.bulk import planner_stats_refresh
 from analysis.core.groups import CoreInputError
 from analysis.core.pooled import Moments, compatibility_matrices_pooled, moments
+from analysis.core.robust import DegenerateScaleError
 from analysis.models import AnalysisChunk, AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.outputs import (
     BATCH,
@@ -736,6 +737,14 @@ def _check_specs(specs: list, loaded: LoadedRound) -> None:
 def _sigma(comparison: Comparison, loaded: LoadedRound, values: Any) -> np.ndarray:
     mode, value = comparison.sigma_pt_mode, comparison.sigma_pt_value
     spec = SigmaPtSpec() if mode == SigmaPtMode.NONE else SigmaPtSpec(mode, value)
-    sigma = sigma_pt_values(loaded.table.value, loaded.groups, values, spec)
     override = np.array([p.sigma_pt_value or np.nan for p in loaded.points], dtype=float)
-    return np.where(np.isfinite(override), override, sigma)
+    try:
+        return sigma_pt_values(loaded.table.value, loaded.groups, values, spec, override)
+    except DegenerateScaleError as exc:
+        names = "; ".join(str(loaded.points[g]) for g in exc.groups[:10])
+        more = f"; and {len(exc.groups) - 10} more" if len(exc.groups) > 10 else ""
+        raise ValidationFailed(
+            f"σ_pt cannot be the robust s* at {names}{more}: s* is 0 there (a single result, "
+            "or most results identical). Set a σ_pt for these measurement points, or choose "
+            "another σ_pt mode, and start the run again."
+        ) from exc

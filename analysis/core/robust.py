@@ -599,12 +599,15 @@ def sigma_pt_robust(
     rtol: float = 1e-10,
     max_iter: int = 500,
     estimator: str | Sequence[str] = "algorithm_a",
+    needed: ArrayLike | None = None,
 ) -> FloatArray:
     """sigma_pt = robust standard deviation s* of the round per group (ISO 13528:2022 8.7):
     by Algorithm A (C.3), or by the Q method (C.5.2.2) where ``estimator`` (one name, or
     one per group) is ``"q_method"``, the s* that goes with a Q/Hampel assigned value.
     Raises CoreInputError for groups where s* = 0 (degenerate data): no z score can be
-    formed there; prescribe sigma_pt for those measurement points."""
+    formed there; prescribe sigma_pt for those measurement points.  ``needed`` (a bool
+    per group, default all) marks the groups whose s* is used: one not needed (its
+    sigma_pt is prescribed) gets NaN where its s* is 0 instead of an error."""
     names = np.broadcast_to(np.asarray(estimator, dtype=object), (groups.n_groups,))
     unknown = set(names.tolist()) - set(SIGMA_PT_ESTIMATORS)
     if unknown:
@@ -619,14 +622,25 @@ def sigma_pt_robust(
             s_star[sel] = q_hampel(part, sub).diagnostics["s_star"]
         else:
             s_star[sel] = algorithm_a(part, sub, rtol=rtol, max_iter=max_iter).diagnostics["s_star"]
+    use = np.ones(groups.n_groups, dtype=bool) if needed is None else np.asarray(needed, bool)
+    s_star[(s_star == 0) & ~use] = np.nan
     bad = np.flatnonzero(s_star == 0)
     if bad.size:
-        raise CoreInputError(
+        raise DegenerateScaleError(
             f"robust s* is 0 for group(s) {bad[:10].tolist()} (more than half of the results "
             "identical for Algorithm A, all of them for the Q method, or a single result): "
-            "prescribe sigma_pt for these measurement points"
+            "prescribe sigma_pt for these measurement points",
+            groups=tuple(int(g) for g in bad),
         )
     return s_star
+
+
+class DegenerateScaleError(CoreInputError):
+    """A robust s* of 0 where σ_pt is to be s*; ``groups`` lists those groups."""
+
+    def __init__(self, message: str, *, groups: tuple[int, ...]) -> None:
+        super().__init__(message)
+        self.groups = groups
 
 
 def _subset(x: ArrayLike, groups: Groups, sel: IntArray) -> tuple[FloatArray, Groups]:
