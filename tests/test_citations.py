@@ -49,7 +49,8 @@ def unresolved(text: str, where: str) -> list[str]:
 def test_every_cited_document_and_section_exists():
     files = tracked_text_files()
     assert len(files) > 200
-    bad = [hit for path in files for hit in unresolved(path.read_text(), path.name)]
+    mine = Path(__file__).name  # its own examples of bad citations
+    bad = [hit for p in files if p.name != mine for hit in unresolved(p.read_text(), p.name)]
     assert bad == []
 
 
