@@ -14,7 +14,7 @@ from analysis.core.assigned import EXACT_MAX  # noqa: F401  (re-exported for the
 from analysis.core.compatibility import compatibility_matrices
 from analysis.core.groups import Groups
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
-from analysis.pipeline import AssignedSpec, ResultTable, take_rows
+from analysis.pipeline import AssignedSpec, ResultTable
 from labs.models import Result, Submission
 from labs.selectors import current_submissions
 from proficiency.errors import ValidationFailed
@@ -91,21 +91,29 @@ def point_result_counts(comparison: Comparison) -> tuple[np.ndarray, np.ndarray]
 
 
 def load_round(
-    comparison: Comparison, first_point_id: int | None = None, last_point_id: int | None = None
+    comparison: Comparison,
+    first_point_id: int | None = None,
+    last_point_id: int | None = None,
+    *,
+    point_ids: list[int] | None = None,
+    submissions: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> LoadedRound:
-    """Accepted results of all points, or of the point ids ``first..last``, read straight
-    into numpy arrays (two queries: the current accepted submissions, then their results;
-    no model instances).
+    """Accepted results of all points, of the point ids ``first..last`` or of the listed
+    ``point_ids``, read straight into numpy arrays (two queries: the current accepted
+    submissions, then their results; no model instances).  ``submissions`` (ids ascending,
+    participant ids) replaces the current accepted ones, e.g. by those a run scored.
 
     Rows are ordered by point, then participant code: every path (one task, or chunks)
     feeds the core the same rows in the same order, so sums round the same way.
     """
-    sub_ids, sub_participants = accepted_submissions(comparison)
+    sub_ids, sub_participants = submissions or accepted_submissions(comparison)
     qs = _results_of(sub_ids)
     if first_point_id is not None:
         qs = qs.filter(
             measurement_point_id__gte=first_point_id, measurement_point_id__lte=last_point_id
         )
+    if point_ids is not None:
+        qs = qs.filter(measurement_point_id__in=point_ids)
     names, kinds = zip(*_RESULT_COLUMNS, strict=True)
     rows = qs.order_by().annotate(**_REPEATS).values_list(*names)
     rid, pid, sub, value, big_u, k, sd, n_rep = read_columns(rows, kinds)
@@ -257,23 +265,33 @@ def run_matrices(
 MAX_LAB_MATRIX_POINTS = 50
 
 
-def lab_matrices(comparison: Comparison, filters: dict[str, str]) -> list[Any]:
+def lab_matrices(run: AnalysisRun, filters: dict[str, str]) -> list[Any]:
     """The lab x lab En matrices of the selected points, computed on request from the
-    accepted results (never stored for a whole round: they grow with labs squared)."""
-    loaded = load_round(comparison)
-    t = loaded.table
-    keep = np.ones(t.value.size, dtype=bool)
-    for key in ("device", "axis", "bench", "direction"):
+    results ``run`` scored (never stored for a whole round: they grow with labs squared).
+    A published run's matrix stays what was published when results change later."""
+    comparison = run.comparison
+    points = MeasurementPoint.objects.filter(comparison=comparison)
+    for key, field in (("device", "device__name"), ("axis", "axis"), ("bench", "bench"),
+                       ("direction", "direction")):  # fmt: skip
         if filters.get(key):
-            keep &= getattr(t, key) == filters[key]
+            points = points.filter(**{field: filters[key]})
     if filters.get("frequency_hz"):
-        keep &= np.isclose(t.frequency_hz, float(filters["frequency_hz"]), rtol=1e-9, atol=0)
-    rows = np.flatnonzero(keep)
-    table = take_rows(t, rows)
-    n_points = np.unique(loaded.groups.index[rows]).size
-    if n_points > MAX_LAB_MATRIX_POINTS:
-        raise ValidationFailed(
-            f"The lab matrix was asked for {n_points} measurement points; narrow it down to at "
-            f"most {MAX_LAB_MATRIX_POINTS} with device, axis, frequency_hz, bench, direction."
+        f = float(filters["frequency_hz"])
+        points = points.filter(
+            frequency_hz__gte=f - abs(f) * 1e-9, frequency_hz__lte=f + abs(f) * 1e-9
         )
-    return compatibility_matrices(table.columns(), "lab", None, limit=comparison.en_limit)
+    scored = Score.objects.filter(run=run, result__measurement_point__in=points).order_by()
+    point_ids = sorted(set(scored.values_list("result__measurement_point_id", flat=True)))
+    if len(point_ids) > MAX_LAB_MATRIX_POINTS:
+        raise ValidationFailed(
+            f"The lab matrix was asked for {len(point_ids)} measurement points; narrow it down "
+            f"to at most {MAX_LAB_MATRIX_POINTS} with device, axis, frequency_hz, bench, direction."
+        )
+    pairs = scored.values_list("result__submission_id", "result__submission__participant_id")
+    ids, participants = read_columns(pairs.distinct(), ("i8", "i8"))
+    order = np.argsort(ids)
+    loaded = load_round(
+        comparison, point_ids=point_ids, submissions=(ids[order], participants[order])
+    )
+    limit = float(run.parameters.get("en_limit", comparison.en_limit))
+    return compatibility_matrices(loaded.table.columns(), "lab", None, limit=limit)

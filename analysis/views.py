@@ -384,14 +384,14 @@ def _matrix_view(title: str, m, viewer: Viewer) -> dict:  # type: ignore[no-unty
 
 def _matrices(viewer: Viewer, form: CompatibilityForm) -> tuple[list, str]:
     factor = form.chosen_factor()
+    assert viewer.run is not None
     if factor == "lab":
         try:
-            found = lab_matrices(viewer.comparison, form.point_filters())
+            found = lab_matrices(viewer.run, form.point_filters())
         except ApplicationError as exc:
             return [], exc.message
         return [(", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
                            for k, v in m.group.items()), m) for m in found], ""  # fmt: skip
-    assert viewer.run is not None
     filters = {k: v for k, v in form.filters().items() if k != "lab"}
     return [(m.group_key, m) for m in run_matrices(viewer.run, factor, filters)], ""
 

@@ -168,7 +168,7 @@ class CompatibilityView(ApiView):
         factor = params.pop("factor")
         if factor == "lab":
             try:
-                found = lab_matrices(access.comparison, params)
+                found = lab_matrices(shown_run(access), params)
             except CoreInputError as exc:  # e.g. no accepted result at the selected points
                 raise ValidationFailed(
                     "No lab matrix for this selection.",
