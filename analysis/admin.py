@@ -9,17 +9,18 @@ from analysis.models import (
     ReportDownload,
     Score,
 )
+from proficiency.admin_site import RecordedByServicesAdmin
 
 
 @admin.register(AnalysisRun)
-class AnalysisRunAdmin(admin.ModelAdmin):
+class AnalysisRunAdmin(RecordedByServicesAdmin):
     list_display = ["id", "comparison", "status", "progress", "stage", "created_at", "finished_at"]
     list_filter = ["status", "comparison"]
     search_fields = ["comparison__code", "error"]
 
 
 @admin.register(AnalysisChunk)
-class AnalysisChunkAdmin(admin.ModelAdmin):
+class AnalysisChunkAdmin(RecordedByServicesAdmin):
     list_display = ["run", "index", "n_results", "done", "attempts", "seconds", "peak_rss_kb"]
     list_filter = ["done", "run__comparison"]
     search_fields = ["run__comparison__code"]
@@ -28,7 +29,7 @@ class AnalysisChunkAdmin(admin.ModelAdmin):
 
 
 @admin.register(AssignedValue)
-class AssignedValueAdmin(admin.ModelAdmin):
+class AssignedValueAdmin(RecordedByServicesAdmin):
     list_display = ["measurement_point", "run", "value", "standard_uncertainty", "method"]
     list_filter = ["method", "run__comparison"]
     search_fields = ["measurement_point__device__name"]
@@ -36,7 +37,7 @@ class AssignedValueAdmin(admin.ModelAdmin):
 
 
 @admin.register(Score)
-class ScoreAdmin(admin.ModelAdmin):
+class ScoreAdmin(RecordedByServicesAdmin):
     list_display = ["result", "run", "en", "zeta", "z", "flag", "correlation_applied"]
     list_filter = ["flag", "correlation_applied", "run__comparison"]
     search_fields = ["result__submission__participant__code"]
@@ -44,7 +45,7 @@ class ScoreAdmin(admin.ModelAdmin):
 
 
 @admin.register(Report)
-class ReportAdmin(admin.ModelAdmin):
+class ReportAdmin(RecordedByServicesAdmin):
     list_display = [
         "comparison",
         "kind",
@@ -59,14 +60,14 @@ class ReportAdmin(admin.ModelAdmin):
 
 
 @admin.register(CompatibilityMatrix)
-class CompatibilityMatrixAdmin(admin.ModelAdmin):
+class CompatibilityMatrixAdmin(RecordedByServicesAdmin):
     list_display = ["factor", "group_key", "run", "incompatible_pairs"]
     list_filter = ["factor", "run__comparison"]
     search_fields = ["group_key"]
 
 
 @admin.register(ReportDownload)
-class ReportDownloadAdmin(admin.ModelAdmin):
+class ReportDownloadAdmin(RecordedByServicesAdmin):
     list_display = ["report", "user", "laboratory", "at"]
     list_filter = ["report__comparison", "report__kind"]
     search_fields = ["report__comparison__code", "user__username", "laboratory__name"]

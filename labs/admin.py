@@ -13,6 +13,7 @@ from labs.models import (
     Submission,
     SubmissionKey,
 )
+from proficiency.admin_site import RecordedByServicesAdmin
 
 
 @admin.register(Laboratory)
@@ -31,7 +32,7 @@ class MembershipAdmin(admin.ModelAdmin):
 
 
 @admin.register(Participant)
-class ParticipantAdmin(admin.ModelAdmin):
+class ParticipantAdmin(RecordedByServicesAdmin):
     list_display = ["code", "comparison", "laboratory", "is_reference", "invited_at"]
     list_filter = ["comparison", "is_reference"]
     search_fields = ["code", "laboratory__name", "comparison__code"]
@@ -41,12 +42,18 @@ class ParticipantAdmin(admin.ModelAdmin):
 class ResultInline(admin.TabularInline):
     model = Result
     extra = 0
-    readonly_fields = ["standard_uncertainty"]
+    can_delete = False
     raw_id_fields = ["measurement_point"]
+
+    def has_add_permission(self, request, obj=None) -> bool:  # type: ignore[no-untyped-def]
+        return False
+
+    def has_change_permission(self, request, obj=None) -> bool:  # type: ignore[no-untyped-def]
+        return False
 
 
 @admin.register(Submission)
-class SubmissionAdmin(admin.ModelAdmin):
+class SubmissionAdmin(RecordedByServicesAdmin):
     list_display = ["participant", "version", "status", "source", "submitted_at", "submitted_by"]
     list_filter = ["status", "source", "participant__comparison"]
     search_fields = ["participant__code", "participant__laboratory__name"]
@@ -55,7 +62,7 @@ class SubmissionAdmin(admin.ModelAdmin):
 
 
 @admin.register(SubmissionKey)
-class SubmissionKeyAdmin(admin.ModelAdmin):
+class SubmissionKeyAdmin(RecordedByServicesAdmin):
     list_display = ["participant", "key", "submission", "created_at"]
     list_filter = ["participant__comparison"]
     search_fields = ["key", "participant__code", "participant__laboratory__name"]
@@ -64,7 +71,7 @@ class SubmissionKeyAdmin(admin.ModelAdmin):
 
 
 @admin.register(Result)
-class ResultAdmin(admin.ModelAdmin):
+class ResultAdmin(RecordedByServicesAdmin):
     list_display = [
         "submission",
         "measurement_point",
@@ -93,15 +100,9 @@ class LabAPIKeyAdmin(APIKeyModelAdmin):
     search_fields = [*APIKeyModelAdmin.search_fields, "laboratory__name"]
 
 
-class CreatedByUploadOnly(admin.ModelAdmin):
+class CreatedByUploadOnly(RecordedByServicesAdmin):
     """Raw data is created by the upload service only (it validates and hashes the
     files) and never modified: the admin views and deletes."""
-
-    def has_add_permission(self, request, obj=None) -> bool:  # type: ignore[no-untyped-def]
-        return False
-
-    def has_change_permission(self, request, obj=None) -> bool:  # type: ignore[no-untyped-def]
-        return False
 
 
 @admin.register(RawFile)

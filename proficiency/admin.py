@@ -15,6 +15,9 @@ class ComparisonAdmin(admin.ModelAdmin):
     search_fields = ["code", "title", "description"]
     filter_horizontal = ["coordinators"]
     inlines = [DeviceInline]
+    # open, close and publish are transitions with their checks, e-mails and audit entry
+    # (the coordinator's pages and the API), never a field to edit
+    readonly_fields = ["status"]
 
 
 @admin.register(Device)

@@ -25,3 +25,18 @@ class SuperuserAdminConfig(AdminConfig):
     change the default admin site)."""
 
     default_site = "proficiency.admin_site.SuperuserAdminSite"
+
+
+class RecordedByServicesAdmin(admin.ModelAdmin):
+    """Rows the services write and the rest of the service relies on (submissions and
+    their results, analysis runs and their outputs, reports): the admin shows them but
+    cannot add or change them, because an edit here would bypass the state machine, the
+    audit log and the invariants the runs rely on (a submitted or accepted version's
+    results never change; a published run's scores are what was published).  Decisions
+    are made on the coordinator's pages and through the API; deleting stays possible."""
+
+    def has_add_permission(self, request: HttpRequest, obj: object = None) -> bool:
+        return False
+
+    def has_change_permission(self, request: HttpRequest, obj: object = None) -> bool:
+        return False

@@ -109,3 +109,31 @@ def test_the_demo_coordinator_is_refused_by_the_admin():
     response = client.get(reverse("admin:labs_participant_changelist"))
     assert response.status_code == 302
     assert response["Location"].startswith(reverse("admin:login"))
+
+
+def test_the_superuser_cannot_edit_what_the_services_record(world):
+    """Submissions, results, participants, runs, scores and reports are shown, not edited,
+    in the admin (an edit would bypass the state machine and the audit log), and a
+    comparison's status changes only by its transitions."""
+    client = Client()
+    client.force_login(world.users["superuser"])
+    result = world.result_a
+    submission = result.submission
+    change = reverse("admin:labs_submission_change", args=[submission.pk])
+    page = client.get(change)
+    assert page.status_code == 200 and b'name="_save"' not in page.content
+    posted = client.post(change, {"status": "draft", "version": submission.version})
+    assert posted.status_code == 403
+    submission.refresh_from_db()
+    assert submission.status == "accepted"
+    edit = client.post(reverse("admin:labs_result_change", args=[result.pk]), {"value": "1"})
+    assert edit.status_code == 403
+    result.refresh_from_db()
+    assert result.value != 1.0
+    for name in ("labs_submission", "labs_result", "labs_participant", "analysis_analysisrun",
+                 "analysis_score", "analysis_report"):  # fmt: skip
+        assert client.get(reverse(f"admin:{name}_add")).status_code == 403, name
+        assert client.get(reverse(f"admin:{name}_changelist")).status_code == 200, name
+    comparison = world.c1
+    form = client.get(reverse("admin:proficiency_comparison_change", args=[comparison.pk]))
+    assert form.status_code == 200 and b'name="status"' not in form.content
