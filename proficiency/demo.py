@@ -39,7 +39,7 @@ from proficiency.services import comparison_apply_template
 DEMO_CODE = "IMU-2024-DEMO"
 COORDINATORS_GROUP = "coordinators"
 NOMINAL = 418.0
-REFERENCE_DATA = Path(settings.BASE_DIR).parent / "shared" / "spec" / "reference-data"
+REFERENCE_DATA = Path(settings.BASE_DIR) / "docs" / "reference-data"  # published tables
 
 # (lab name, country, username, benches measured)
 LINEAR_LAB = ("Linear Bench Calibration Laboratory", "IT", "linear-lab")
@@ -61,34 +61,12 @@ RAW_DATA_LAB = "Alpine Vibration Metrology"  # attaches a linear and a curviline
 RAW_SECONDS = 8.0  # synthetic records generated at load time: small (~80 kB + 160 kB)
 RAW_BIAS = 1.002  # the record's truth differs from the reported value by +0.2 %
 
+
 # Table 1 of Chiominto et al. 2024 as shipped with the specification; the copy
 # here is used only when the shared folder is absent (e.g. an installed wheel).
-_TABLE1_FALLBACK = """bench,device,axis,sensitivity,expanded_uncertainty,coverage_factor
-curvilinear,MEMS 1,X,423,13,2
-curvilinear,MEMS 1,Y,422,11,2
-curvilinear,MEMS 1,Z,425,11,2
-linear,MEMS 1,X,422,13,2
-linear,MEMS 1,Y,419,12,2
-linear,MEMS 1,Z,421,11,2
-curvilinear,MEMS 2,X,422,9,2
-curvilinear,MEMS 2,Y,423,12,2
-curvilinear,MEMS 2,Z,423,9,2
-linear,MEMS 2,X,422,13,2
-linear,MEMS 2,Y,419,11,2
-linear,MEMS 2,Z,419,10,2
-curvilinear,MEMS 3,X,423,10,2
-curvilinear,MEMS 3,Y,430,11,2
-curvilinear,MEMS 3,Z,426,7,2
-linear,MEMS 3,X,425,22,2
-linear,MEMS 3,Y,429,23,2
-linear,MEMS 3,Z,424,17,2
-"""
-
-
 def table1() -> dict[tuple[str, str, str], tuple[float, float]]:
     """(bench, device, axis) -> (mean sensitivity, expanded uncertainty k=2) of Table 1."""
-    path = REFERENCE_DATA / "chiominto2024_table1.csv"
-    text = path.read_text() if path.exists() else _TABLE1_FALLBACK
+    text = (REFERENCE_DATA / "chiominto2024_table1.csv").read_text(encoding="utf-8")
     return {
         (r["bench"], r["device"], r["axis"]): (
             float(r["sensitivity"]),

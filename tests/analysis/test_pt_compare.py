@@ -14,7 +14,7 @@ from django.core.management import call_command
 from django.core.management.base import CommandError
 
 ROOT = Path(__file__).resolve().parents[2]
-REFERENCE = ROOT.parent / "shared" / "spec" / "reference-data"
+REFERENCE = ROOT / "docs" / "reference-data"
 HEADER = "lab,device,axis,frequency_hz,bench,direction,sensitivity,expanded_uncertainty"
 
 

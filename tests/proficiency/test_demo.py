@@ -14,7 +14,7 @@ from proficiency.demo import DEMO_CODE, OUTLIER_LAB
 from proficiency.models import Comparison, Device, MeasurementPoint
 
 pytestmark = pytest.mark.django_db
-REFERENCE = Path(__file__).resolve().parents[3] / "shared" / "spec" / "reference-data"
+REFERENCE = Path(__file__).resolve().parents[2] / "docs" / "reference-data"
 
 
 def counts() -> dict[str, int]:

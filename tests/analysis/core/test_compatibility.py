@@ -25,7 +25,7 @@ from analysis.core.compatibility import (
 )
 from analysis.core.groups import CoreInputError, Groups
 
-REFERENCE_DATA = Path(__file__).resolve().parents[3].parent / "shared" / "spec" / "reference-data"
+REFERENCE_DATA = Path(__file__).resolve().parents[3] / "docs" / "reference-data"
 NOMINAL = 418.0
 U_NOMINAL = 4.18 / math.sqrt(3)  # ±1 % rectangular, docs/domain.md §3
 

@@ -78,7 +78,7 @@ def test_sine_fit_beats_paper_on_the_curvilinear_bench(case):
 
 
 def test_curvilinear_reference_from_the_test_plan():
-    """reference-data/README: 8.5° peak to peak at 10 Hz, r = 170 mm → 49.78 and 3.69/2."""
+    """docs/domain.md §8.2: 8.5° peak to peak at 10 Hz, r = 170 mm → 49.78 and 3.69/2."""
     a_t, a_r = encoder_reference(np.radians(8.5) / 2, 10.0, 0.170)
     assert a_t == pytest.approx(49.78, abs=0.005) and 2 * a_r == pytest.approx(3.69, abs=0.005)
     mems, encoder = curvilinear_records(TRUTH)
