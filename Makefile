@@ -3,20 +3,41 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 HOST ?= 127.0.0.1:8000
+# Installing needs only pip (every package pinned with its hashes in the lock files);
+# compiling the lock files (`make lock`) needs uv, installed into the venv at this version.
+PIP_VERSION := 26.3
+UV_VERSION := 0.13.9
+LOCK_PLATFORM := --python-version 3.11 --python-platform x86_64-unknown-linux-gnu
+UV_COMPILE = $(VENV)/bin/uv pip compile --quiet --generate-hashes $(LOCK_PLATFORM) \
+	--custom-compile-command "make lock" $(LOCK_FLAGS)
 
-.PHONY: run serve test lint format migrate demo bench clean
+.PHONY: run serve test lint format migrate demo bench lock lock-upgrade clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet pip==$(PIP_VERSION)
 
-$(VENV)/.runtime: requirements.txt | $(PY)
-	$(PY) -m pip install --quiet -r requirements.txt
+# The venv is brought to the lock whenever the lock file is newer than the stamp.
+$(VENV)/.runtime: requirements.lock | $(PY)
+	$(PY) -m pip install --quiet --require-hashes -r requirements.lock
 	touch $@
 
-$(VENV)/.dev: requirements.txt requirements-dev.txt | $(PY)
-	$(PY) -m pip install --quiet -r requirements-dev.txt
+$(VENV)/.dev: requirements-dev.lock | $(PY)
+	$(PY) -m pip install --quiet --require-hashes -r requirements-dev.lock
 	touch $@ $(VENV)/.runtime
+
+$(VENV)/bin/uv: | $(PY)
+	$(PY) -m pip install --quiet uv==$(UV_VERSION)
+
+# After editing requirements.txt or requirements-dev.txt (the ranges): re-resolve, keeping
+# the current pins where the ranges still allow them; `make lock-upgrade` takes the newest.
+# The dev lock is constrained by the runtime lock, so both pin the same runtime versions.
+lock: $(VENV)/bin/uv
+	$(UV_COMPILE) requirements.txt -o requirements.lock
+	$(UV_COMPILE) requirements-dev.txt -c requirements.lock -o requirements-dev.lock
+
+lock-upgrade:
+	$(MAKE) lock LOCK_FLAGS=--upgrade
 
 migrate: $(VENV)/.runtime
 	$(PY) manage.py migrate --noinput
