@@ -10,12 +10,14 @@ import numpy as np
 import pytest
 from django.core.management import call_command
 from django.core.management.base import CommandError
+from scipy import stats
 
 from analysis.core.signals.synthetic import Imperfections, curvilinear_records, linear_record
 
 ROOT = Path(__file__).resolve().parents[2]
 TRUTH = (420.0, 418.0, 425.0)
 AXIS_KEYS = {
+    "dof_eff",
     "axis",
     "direction",
     "frequency_hz",
@@ -64,6 +66,13 @@ def test_linear_binary_record_json(tmp_path):
     assert axes["X"]["reference_amplitude_m_s2"] == pytest.approx(10 * np.sin(np.radians(75)))
     u = np.sqrt(sum(c["contribution"] ** 2 for c in axes["X"]["budget"]))
     assert axes["X"]["standard_uncertainty"] == pytest.approx(u, rel=1e-12)
+    # ν_eff by Welch–Satterthwaite from the budget's own components (JCGM 100 G.4), and
+    # k the Student t quantile for 95 % at ν_eff (scipy as the independent reference)
+    finite = [c for c in axes["X"]["budget"] if c["dof"] is not None and c["contribution"] > 0]
+    nu_eff = u**4 / sum(c["contribution"] ** 4 / c["dof"] for c in finite)
+    assert axes["X"]["dof_eff"] == pytest.approx(nu_eff, rel=1e-12)
+    assert axes["X"]["coverage_factor"] == pytest.approx(stats.t.ppf(0.975, nu_eff), rel=1e-9)
+    assert axes["Y"]["dof_eff"] is None  # no budget where the component is too small
 
 
 def test_options_override_the_sidecar_and_paper_mode_is_worse(tmp_path):

@@ -49,6 +49,7 @@ class AxisResult:
             "standard_uncertainty": self.standard_uncertainty,
             "expanded_uncertainty": b.expanded if b else None,
             "coverage_factor": b.k if b else None,
+            "dof_eff": b.to_dict()["dof_eff"] if b else None,
             "budget": b.to_dict()["components"] if b else [],
             "status": self.status,
             "note": self.note,

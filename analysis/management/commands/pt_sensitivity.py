@@ -82,7 +82,8 @@ def render_table(result: SensitivityResult, doc: dict[str, Any]) -> str:
         if a["note"]:
             parts.append(f"{a['axis']}: {a['note']}")
         if a["budget"]:
-            parts += ["", f"BUDGET {a['axis']} ({a['direction']})"]
+            nu = "∞" if a["dof_eff"] is None else f"{a['dof_eff']:.1f}"
+            parts += ["", f"BUDGET {a['axis']} ({a['direction']}): ν_eff = {nu}"]
             parts.append(_table(
                 ["component", "type", "value", "u", "c", "|c|·u", "ν"],
                 [[c["name"], c["type"], c["value"], c["standard_uncertainty"],
