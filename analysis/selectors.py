@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from django.db.models import Count, QuerySet, Value
@@ -205,7 +205,7 @@ def current_run(comparison: Comparison) -> AnalysisRun | None:
 def run_consistency(run: AnalysisRun, *, signals_only: bool) -> QuerySet[AssignedValue]:
     """The run's points with their consistency tests, in point order; ``signals_only``:
     those where a test finds a straggler or an outlier."""
-    order = [f"measurement_point__{f}" for f in MeasurementPoint._meta.ordering]
+    order = [f"measurement_point__{f}" for f in cast(list[str], MeasurementPoint._meta.ordering)]
     found = AssignedValue.objects.filter(run=run).select_related("measurement_point__device")
     if signals_only:
         found = found.filter(consistency__signals=True)
