@@ -10,15 +10,20 @@ from __future__ import annotations
 import io
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from html import escape
+from typing import TYPE_CHECKING, Any, ParamSpec, TypeVar
 
 import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LinearSegmentedColormap
 from matplotlib.figure import Figure
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.typing import RcKeyType
 
 matplotlib.use("Agg")  # no display; the canvas is attached explicitly anyway
 
@@ -27,7 +32,7 @@ LAB = "#1f3a5f"
 BAND = "#9ec5fe"
 BAD = "#dc3545"
 SERIES = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#17becf")
-RC = {
+RC: dict[RcKeyType, Any] = {
     "svg.hashsalt": "pt-charts",
     "svg.fonttype": "none",  # text stays text: searchable, selectable, smaller
     "font.family": "DejaVu Sans",
@@ -70,10 +75,14 @@ def _svg(fig: Figure, label: str | None = None) -> str:
     return _SIZE.sub(attrs, svg, count=1)
 
 
-def _with_rc(func):  # type: ignore[no-untyped-def]
+_P = ParamSpec("_P")
+_R = TypeVar("_R")
+
+
+def _with_rc(func: Callable[_P, _R]) -> Callable[_P, _R]:
     """Build the figure inside the chart style (fonts, spines) as well as save it."""
 
-    def wrapper(*args, **kwargs):  # type: ignore[no-untyped-def]
+    def wrapper(*args: _P.args, **kwargs: _P.kwargs) -> _R:
         with matplotlib.rc_context(RC):
             return func(*args, **kwargs)
 
@@ -116,7 +125,7 @@ def point_chart(
     return _svg(fig)
 
 
-def _mark_own_tick(ax, labels: Sequence[str], highlight: str | None) -> None:  # type: ignore[no-untyped-def]
+def _mark_own_tick(ax: Axes, labels: Sequence[str], highlight: str | None) -> None:
     for tick, label in zip(ax.get_xticklabels(), labels, strict=False):
         if label == highlight:
             tick.set_color(OWN)

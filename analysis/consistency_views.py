@@ -5,16 +5,19 @@ in long form at full precision (the ``pt_compare`` CSV section)."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from django.contrib.auth.decorators import login_required
-from django.http import Http404, HttpRequest, HttpResponse
+from django.http import Http404, HttpResponse
 from django.views.decorators.http import require_GET
 
 from analysis import consistency as tests
 from analysis.models import AssignedValue
 from analysis.selectors import run_consistency
 from analysis.views import Viewer, _page, _render, _viewer
+
+if TYPE_CHECKING:
+    from proficiency.http import AuthenticatedHttpRequest
 
 BADGE = {"correct": "text-bg-success", "straggler": "text-bg-warning",
          "outlier": "text-bg-danger", tests.NA: "text-bg-light border"}  # fmt: skip
@@ -23,7 +26,7 @@ TEST_ORDER = ("grubbs_single", "grubbs_double", "cochran")
 
 @login_required
 @require_GET
-def consistency(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+def consistency(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpResponse:
     viewer = _viewer(request, code, audience)
     if viewer.run is None:
         return _render(request, viewer, "consistency", {})
@@ -81,7 +84,9 @@ def _lab_view(lab: dict[str, Any], viewer: Viewer) -> dict[str, Any]:
 
 @login_required
 @require_GET
-def consistency_download(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+def consistency_download(
+    request: AuthenticatedHttpRequest, code: str, audience: str
+) -> HttpResponse:
     """Every point's tests in long form (``analysis.consistency.csv_rows``), full precision."""
     from labs.importers import write_table
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 from django import forms
 
@@ -42,9 +42,11 @@ class ScoreFilterForm(BootstrapMixin, forms.Form):
         points = comparison.measurement_points
         devices = comparison.devices.order_by("name").values_list("name", flat=True)
         freqs = sorted(set(points.values_list("frequency_hz", flat=True)))
-        self.fields["device"].choices = ALL + [(d, d) for d in devices]
-        self.fields["frequency_hz"].choices = ALL + [(repr(f), format_number(f)) for f in freqs]
-        self.fields["lab"].choices = ALL + [(c, c) for c in lab_codes]
+        cast(forms.ChoiceField, self.fields["device"]).choices = ALL + [(d, d) for d in devices]
+        cast(forms.ChoiceField, self.fields["frequency_hz"]).choices = ALL + [
+            (repr(f), format_number(f)) for f in freqs
+        ]
+        cast(forms.ChoiceField, self.fields["lab"]).choices = ALL + [(c, c) for c in lab_codes]
 
     def filters(self) -> dict[str, str]:
         """The valid filters as ``run_scores`` takes them (an invalid form filters nothing)."""
@@ -58,7 +60,9 @@ class PointForm(BootstrapMixin, forms.Form):
 
     def __init__(self, data: Any, *, points: list[MeasurementPoint]) -> None:
         super().__init__(data)
-        self.fields["point"].choices = [(p.pk, point_choice_label(p)) for p in points]
+        cast(forms.ChoiceField, self.fields["point"]).choices = [
+            (p.pk, point_choice_label(p)) for p in points
+        ]
         self.points = {p.pk: p for p in points}
 
     def chosen(self) -> MeasurementPoint | None:
@@ -76,7 +80,9 @@ class CompatibilityForm(ScoreFilterForm):
     def __init__(self, data: Any, *, comparison: Comparison, points: list[MeasurementPoint]):
         super().__init__(data, comparison=comparison, lab_codes=[])
         del self.fields["lab"]
-        self.fields["point"].choices = [(p.pk, point_choice_label(p)) for p in points]
+        cast(forms.ChoiceField, self.fields["point"]).choices = [
+            (p.pk, point_choice_label(p)) for p in points
+        ]
         self.points = {p.pk: p for p in points}
 
     def chosen_factor(self) -> str:

@@ -323,8 +323,9 @@ def assigned_values(
             spec.tolerance,
             groups,
             relative=spec.tolerance_relative,
-            distribution=spec.distribution,
-        )  # type: ignore[arg-type]
+            # a Distribution: what parse() and the model field's choices allow
+            distribution=spec.distribution,  # type: ignore[arg-type]
+        )
     if spec.method == "weighted_mean":
         return _weighted_mean_or_subset(x, u, groups)
     if spec.method == "algorithm_a":
@@ -474,7 +475,7 @@ def excluded_labs(analysis: Analysis) -> list[list[str] | None]:
     out: list[list[str] | None] = [[] if sel else None for sel in selects]
     left_out = np.flatnonzero(~a.included & selects[groups.index])
     for i in left_out[np.lexsort((analysis.table.lab[left_out], groups.index[left_out]))]:
-        out[groups.index[i]].append(str(analysis.table.lab[i]))  # type: ignore[union-attr]
+        out[groups.index[i]].append(str(analysis.table.lab[i]))
     return out
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from django.db.models import Count, QuerySet, Value
@@ -95,11 +95,11 @@ def load_round(
     first_point_id: int | None = None,
     last_point_id: int | None = None,
     *,
-    point_ids: list[int] | None = None,
+    only_points: list[int] | None = None,
     submissions: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> LoadedRound:
     """Accepted results of all points, of the point ids ``first..last`` or of the listed
-    ``point_ids``, read straight into numpy arrays (two queries: the current accepted
+    ``only_points``, read straight into numpy arrays (two queries: the current accepted
     submissions, then their results; no model instances).  ``submissions`` (ids ascending,
     participant ids) replaces the current accepted ones, e.g. by those a run scored.
 
@@ -112,8 +112,8 @@ def load_round(
         qs = qs.filter(
             measurement_point_id__gte=first_point_id, measurement_point_id__lte=last_point_id
         )
-    if point_ids is not None:
-        qs = qs.filter(measurement_point_id__in=point_ids)
+    if only_points is not None:
+        qs = qs.filter(measurement_point_id__in=only_points)
     names, kinds = zip(*_RESULT_COLUMNS, strict=True)
     rows = qs.order_by().annotate(**_REPEATS).values_list(*names)
     rid, pid, sub, value, big_u, k, sd, n_rep = read_columns(rows, kinds)
@@ -213,7 +213,7 @@ def current_run(comparison: Comparison) -> AnalysisRun | None:
 def run_consistency(run: AnalysisRun, *, signals_only: bool) -> QuerySet[AssignedValue]:
     """The run's points with their consistency tests, in point order; ``signals_only``:
     those where a test finds a straggler or an outlier."""
-    order = [f"measurement_point__{f}" for f in MeasurementPoint._meta.ordering]
+    order = [f"measurement_point__{f}" for f in cast(list[str], MeasurementPoint._meta.ordering)]
     found = AssignedValue.objects.filter(run=run).select_related("measurement_point__device")
     if signals_only:
         found = found.filter(consistency__signals=True)
@@ -291,7 +291,7 @@ def lab_matrices(run: AnalysisRun, filters: dict[str, str]) -> list[Any]:
     ids, participants = read_columns(pairs.distinct(), ("i8", "i8"))
     order = np.argsort(ids)
     loaded = load_round(
-        comparison, point_ids=point_ids, submissions=(ids[order], participants[order])
+        comparison, only_points=point_ids, submissions=(ids[order], participants[order])
     )
     limit = float(run.parameters.get("en_limit", comparison.en_limit))
     return compatibility_matrices(loaded.table.columns(), "lab", None, limit=limit)

@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 from django.conf import settings
-from django.contrib.auth.models import AbstractBaseUser
+from django.contrib.auth.models import User
 from django.db import connection, transaction
 from django.db.models import F, Q, Value
 from django.db.models.functions import Coalesce, Greatest
@@ -92,7 +92,7 @@ STORED_FACTORS = tuple(f for f in FACTORS if f != "lab")
 
 
 def analysis_run_start(
-    *, comparison: Comparison, user: AbstractBaseUser | None, parameters: dict | None = None
+    *, comparison: Comparison, user: User | None, parameters: dict | None = None
 ) -> AnalysisRun:
     """Create a pending run and enqueue it once the transaction has committed."""
     from analysis.tasks import analysis_run_task
@@ -313,7 +313,7 @@ def _end(run_id: int, message: str, status: str) -> bool:
     return True
 
 
-def analysis_run_cancel(*, run: AnalysisRun, user: AbstractBaseUser | None) -> AnalysisRun:
+def analysis_run_cancel(*, run: AnalysisRun, user: User | None) -> AnalysisRun:
     """Cancel a pending or running run: it stores nothing more and keeps no outputs; its
     queued tasks find it cancelled and do nothing.  A new run can be started at once."""
     who = getattr(user, "get_username", lambda: "")() or "a coordinator"
@@ -414,8 +414,8 @@ def _save_chunk(
     if _lock_run(run.pk) != R.RUNNING:  # failed or cancelled meanwhile: store nothing
         return False, False
     # of=self, no ordering: the default ordering joins the run, which FOR UPDATE would lock
-    locked = AnalysisChunk.objects.select_for_update(of=("self",)).order_by().filter(pk=chunk.pk)
-    locked = locked.first()
+    query = AnalysisChunk.objects.select_for_update(of=("self",)).order_by().filter(pk=chunk.pk)
+    locked = query.first()
     if locked is None or locked.done or locked.token != token:
         return False, False  # re-planned, stored by another delivery, or taken over
     span = {"gte": chunk.first_point_id, "lte": chunk.last_point_id}

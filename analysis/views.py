@@ -10,12 +10,14 @@ The results pages serve two audiences with the same views and templates:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.core.paginator import Page, Paginator
-from django.db.models import Count, IntegerField, OuterRef, Subquery
+from django.db.models import Count, IntegerField, OuterRef, QuerySet, Subquery
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
@@ -39,6 +41,9 @@ from proficiency.coordinator_views import POINT_ORDER, coordinated
 from proficiency.errors import ApplicationError, NotVisible
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.services import comparison_publish
+
+if TYPE_CHECKING:
+    from proficiency.http import AuthenticatedHttpRequest
 
 COORDINATOR, PARTICIPANT = "coordinator", "participant"
 R = AnalysisRun.Status
@@ -83,7 +88,7 @@ class Viewer:
         return [(page, label, self.url(page)) for page, label in pages]
 
 
-def _viewer(request: HttpRequest, code: str, audience: str) -> Viewer:
+def _viewer(request: AuthenticatedHttpRequest, code: str, audience: str) -> Viewer:
     if audience == COORDINATOR:
         comparison = coordinated(request, code)
         return Viewer(comparison, _chosen_run(comparison, request.GET.get("run", "")), audience)
@@ -112,7 +117,7 @@ def _render(request: HttpRequest, viewer: Viewer, page: str, context: dict) -> H
     return render(request, f"analysis/{page}.html", base | context)
 
 
-def _page(request: HttpRequest, items, per_page: int) -> Page:  # type: ignore[no-untyped-def]
+def _page(request: HttpRequest, items: QuerySet[Any] | Sequence[Any], per_page: int) -> Page:
     return Paginator(items, per_page).get_page(request.GET.get("page"))
 
 
@@ -121,7 +126,7 @@ def _page(request: HttpRequest, items, per_page: int) -> Page:  # type: ignore[n
 
 @login_required
 @require_POST
-def run_start(request: HttpRequest, code: str) -> HttpResponse:
+def run_start(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     try:
         run = analysis_run_start(comparison=comparison, user=request.user)
@@ -133,7 +138,7 @@ def run_start(request: HttpRequest, code: str) -> HttpResponse:
 
 @login_required
 @require_GET
-def runs(request: HttpRequest, code: str) -> HttpResponse:
+def runs(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     context = {
         "comparison": comparison,
@@ -143,16 +148,20 @@ def runs(request: HttpRequest, code: str) -> HttpResponse:
     return render(request, "analysis/runs.html", context)
 
 
-def _run(request: HttpRequest, code: str, pk: int) -> AnalysisRun:
+def _run(request: AuthenticatedHttpRequest, code: str, pk: int) -> AnalysisRun:
     comparison = coordinated(request, code)
     return get_object_or_404(comparison.analysis_runs.select_related("comparison"), pk=pk)
 
 
 @login_required
 @require_GET
-def run_detail(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+def run_detail(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
     run = _run(request, code, pk)
-    context = {"comparison": run.comparison, "run": run, "current": current_run(run.comparison)}
+    context: dict[str, object] = {
+        "comparison": run.comparison,
+        "run": run,
+        "current": current_run(run.comparison),
+    }
     if run.status == R.SUCCEEDED:
         context["n_signalling"] = run_consistency(run, signals_only=True).count()
     return render(request, "analysis/run.html", context)
@@ -160,7 +169,7 @@ def run_detail(request: HttpRequest, code: str, pk: int) -> HttpResponse:
 
 @login_required
 @require_GET
-def run_progress(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+def run_progress(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
     """The progress partial, polled by htmx: reads the run row, never the Celery backend."""
     run = _run(request, code, pk)
     context = {"comparison": run.comparison, "run": run, "current": current_run(run.comparison)}
@@ -169,7 +178,7 @@ def run_progress(request: HttpRequest, code: str, pk: int) -> HttpResponse:
 
 @login_required
 @require_POST
-def run_cancel(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+def run_cancel(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
     """Cancel a pending or running run; the coordinator can start a new one at once."""
     run = _run(request, code, pk)
     try:
@@ -183,7 +192,7 @@ def run_cancel(request: HttpRequest, code: str, pk: int) -> HttpResponse:
 
 @login_required
 @require_POST
-def publish(request: HttpRequest, code: str) -> HttpResponse:
+def publish(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     if current_run(comparison) is None:
         messages.error(request, f"{code} has no successful analysis run to publish.")
@@ -200,7 +209,7 @@ def publish(request: HttpRequest, code: str) -> HttpResponse:
 # --- results pages (both audiences) -------------------------------------------------------
 
 
-def _assigned(run: AnalysisRun):  # type: ignore[no-untyped-def]
+def _assigned(run: AnalysisRun) -> QuerySet[AssignedValue]:
     n = (
         Score.objects.filter(run=run, result__measurement_point=OuterRef("measurement_point"))
         .values("run").annotate(c=Count("pk")).values("c")
@@ -230,7 +239,7 @@ def _bench_rows(run: AnalysisRun) -> list[dict]:
 
 @login_required
 @require_GET
-def results(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+def results(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpResponse:
     viewer = _viewer(request, code, audience)
     if viewer.run is None:
         return _render(request, viewer, "results", {})
@@ -252,7 +261,7 @@ def _lab_codes(viewer: Viewer) -> list[str]:
 
 @login_required
 @require_GET
-def scores(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+def scores(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpResponse:
     viewer = _viewer(request, code, audience)
     if viewer.run is None:
         return _render(request, viewer, "scores", {})
@@ -292,7 +301,9 @@ def _score_records(run: AnalysisRun, filters: dict[str, str]) -> list[dict]:
 
 @login_required
 @require_GET
-def scores_download(request: HttpRequest, code: str, fmt: str, audience: str) -> HttpResponse:
+def scores_download(
+    request: AuthenticatedHttpRequest, code: str, fmt: str, audience: str
+) -> HttpResponse:
     """The (filtered) scores as CSV or XLSX; formula-like cells are escaped by write_table."""
     from labs.importers import write_table
 
@@ -342,14 +353,14 @@ def _frequency_charts(viewer: Viewer) -> list[str]:
         by_device.setdefault(str(m.group.get("device", "")), []).append(series)
     devices = {d.name: d for d in viewer.comparison.devices.all()}
     out = []
-    for name, series in sorted(by_device.items()):
+    for name, curves in sorted(by_device.items()):
         d = devices.get(name)
         nominal = d.nominal_sensitivity if d else None
         half = None
         if d and nominal and d.tolerance:
             half = nominal * d.tolerance / 100 if d.tolerance_relative else d.tolerance
         out.append(charts.frequency_chart(
-            series, title=f"{name}: mean of all labs per frequency", unit=d.unit if d else "",
+            curves, title=f"{name}: mean of all labs per frequency", unit=d.unit if d else "",
             nominal=nominal, nominal_half_width=half,
         ))  # fmt: skip
     return out
@@ -357,7 +368,7 @@ def _frequency_charts(viewer: Viewer) -> list[str]:
 
 @login_required
 @require_GET
-def charts_page(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+def charts_page(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpResponse:
     viewer = _viewer(request, code, audience)
     if viewer.run is None:
         return _render(request, viewer, "charts", {})
@@ -372,7 +383,7 @@ def charts_page(request: HttpRequest, code: str, audience: str) -> HttpResponse:
     return _render(request, viewer, "charts", context)
 
 
-def _matrix_view(title: str, m, viewer: Viewer) -> dict:  # type: ignore[no-untyped-def]
+def _matrix_view(title: str, m: Any, viewer: Viewer) -> dict:  # stored, or lab_matrices' (Any)
     levels = [str(v) if not isinstance(v, float) else f"{v:g} Hz" for v in m.levels]
     values = getattr(m, "values", None) or list(m.value)
     big_u = getattr(m, "expanded_uncertainties", None) or list(m.expanded_uncertainty)
@@ -398,7 +409,7 @@ def _matrices(viewer: Viewer, form: CompatibilityForm) -> tuple[list, str]:
 
 @login_required
 @require_GET
-def compatibility(request: HttpRequest, code: str, audience: str) -> HttpResponse:
+def compatibility(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpResponse:
     viewer = _viewer(request, code, audience)
     if viewer.run is None:
         return _render(request, viewer, "compatibility", {})

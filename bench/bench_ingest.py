@@ -27,6 +27,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import Any
 from urllib.parse import urlsplit, urlunsplit
 
 import psycopg
@@ -118,7 +119,7 @@ def free_port() -> int:
 def start_server(db_url: str, port: int) -> subprocess.Popen:
     cmd = [sys.executable, "manage.py", "runserver", "--noreload", f"127.0.0.1:{port}"]
     # The access log goes nowhere; errors reach the client as JSON anyway.
-    quiet = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    quiet: dict[str, Any] = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
     return subprocess.Popen(cmd, cwd=ROOT, env=server_env(db_url), **quiet)
 
 

@@ -41,7 +41,11 @@ import sys
 import time
 import urllib.request
 from pathlib import Path
+from typing import TYPE_CHECKING
 from urllib.parse import urlparse
+
+if TYPE_CHECKING:  # Django is set up in main()
+    from proficiency.models import Comparison
 
 ROOT = Path(__file__).resolve().parent.parent
 LOOPBACK = {"127.0.0.1", "localhost", "::1"}
@@ -162,7 +166,7 @@ def _delete_previous(comparisons: object) -> None:
     comparisons.delete()  # type: ignore[attr-defined]
 
 
-def _points(comparison: object) -> None:
+def _points(comparison: Comparison) -> None:
     from proficiency.models import Device
     from proficiency.services import comparison_apply_template, comparison_transition
 
@@ -181,7 +185,7 @@ def _points(comparison: object) -> None:
     comparison_transition(comparison=comparison, to="open")
 
 
-def _records(comparison: object) -> list[dict]:
+def _records(comparison: Comparison) -> list[dict]:
     """The JSON rows of one complete submission (values filled in by the locustfile)."""
     from labs.selectors import results_template
 

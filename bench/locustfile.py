@@ -29,6 +29,7 @@ import os
 import random
 import time
 from pathlib import Path
+from typing import Any
 
 from locust import FastHttpUser, between, constant_throughput, task
 
@@ -61,7 +62,7 @@ class LabUser(FastHttpUser):
         self.rng = random.Random(lab["lab"])
         self.version = 1
 
-    def _get(self, path: str, name: str) -> dict | list | None:
+    def _get(self, path: str, name: str) -> Any:  # the JSON answer, None on failure
         with self.client.get(path, headers=self.headers, name=name, catch_response=True) as r:
             if r.status_code != 200:
                 r.failure(f"HTTP {r.status_code}: {r.text[:200]}")

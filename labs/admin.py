@@ -1,4 +1,6 @@
 from django.contrib import admin
+from django.db.models import Model
+from django.http import HttpRequest
 from rest_framework_api_key.admin import APIKeyModelAdmin
 
 from labs.models import (
@@ -45,10 +47,10 @@ class ResultInline(admin.TabularInline):
     can_delete = False
     raw_id_fields = ["measurement_point"]
 
-    def has_add_permission(self, request, obj=None) -> bool:  # type: ignore[no-untyped-def]
+    def has_add_permission(self, request: HttpRequest, obj: Model | None = None) -> bool:
         return False
 
-    def has_change_permission(self, request, obj=None) -> bool:  # type: ignore[no-untyped-def]
+    def has_change_permission(self, request: HttpRequest, obj: Model | None = None) -> bool:
         return False
 
 
@@ -95,9 +97,10 @@ class ResultAdmin(RecordedByServicesAdmin):
 
 @admin.register(LabAPIKey)
 class LabAPIKeyAdmin(APIKeyModelAdmin):
-    list_display = [*APIKeyModelAdmin.list_display, "laboratory"]
-    list_filter = [*APIKeyModelAdmin.list_filter, "laboratory"]
-    search_fields = [*APIKeyModelAdmin.search_fields, "laboratory__name"]
+    # the library's attributes are typed as tuples of their exact length: longer ones here
+    list_display = [*APIKeyModelAdmin.list_display, "laboratory"]  # type: ignore[assignment]
+    list_filter = [*APIKeyModelAdmin.list_filter, "laboratory"]  # type: ignore[assignment]
+    search_fields = [*APIKeyModelAdmin.search_fields, "laboratory__name"]  # type: ignore[assignment]
 
 
 class CreatedByUploadOnly(RecordedByServicesAdmin):
@@ -116,7 +119,7 @@ class RawRecomputationInline(admin.StackedInline):
     model = RawRecomputation
     extra = 0
     can_delete = False
-    readonly_fields = ["status", "error", "sensitivity", "expanded_uncertainty", "en", "fs_hz"]
+    readonly_fields = ("status", "error", "sensitivity", "expanded_uncertainty", "en", "fs_hz")
     fields = readonly_fields
 
 

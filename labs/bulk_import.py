@@ -30,7 +30,7 @@ from typing import BinaryIO
 import numpy as np
 from auditlog.models import LogEntry
 from django.conf import settings
-from django.contrib.auth.models import AbstractBaseUser
+from django.contrib.auth.models import User
 from django.contrib.contenttypes.models import ContentType
 from django.db import connections, router, transaction
 from django.db.models import Max
@@ -83,7 +83,7 @@ def results_import(
     *,
     comparison: Comparison,
     file: BinaryIO | str | os.PathLike[str],
-    user: AbstractBaseUser | None,
+    user: User | None,
     filename: str | None = None,
     chunk_rows: int | None = None,
 ) -> ImportSummary:
@@ -119,7 +119,7 @@ def results_import(
     return summary
 
 
-def _check_coordinator(comparison: Comparison, user: AbstractBaseUser | None) -> None:
+def _check_coordinator(comparison: Comparison, user: User | None) -> None:
     if user is None or getattr(user, "is_superuser", False):
         return
     if not comparison.coordinators.filter(pk=user.pk).exists():
@@ -225,9 +225,7 @@ class _Writer:
 class _Import:
     """One import in progress: the comparison's participants and points, what was stored."""
 
-    def __init__(
-        self, comparison: Comparison, user: AbstractBaseUser | None, writer: _Writer
-    ) -> None:
+    def __init__(self, comparison: Comparison, user: User | None, writer: _Writer) -> None:
         self.comparison, self.user, self.now = comparison, user, timezone.now()
         self.writer = writer
         self.context: TableContext = table_context(comparison)

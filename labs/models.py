@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 from django.conf import settings
 from django.db import models
 from django.db.models import F, Q
@@ -246,7 +248,7 @@ class LabAPIKey(AbstractAPIKey):
     Only the prefix and the hash are stored; the key itself is shown once, when it
     is created (``labs.services.api_key_create``)."""
 
-    objects = LabAPIKeyManager()
+    objects: ClassVar[LabAPIKeyManager] = LabAPIKeyManager()
     laboratory = models.ForeignKey(Laboratory, on_delete=models.CASCADE, related_name="api_keys")
     created_by = models.ForeignKey(
         settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL

@@ -3,7 +3,7 @@ docs/interfaces.md §2 metadata keys); ``labs.raw_services`` validates the conte
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 from django import forms
 
@@ -35,8 +35,9 @@ class RawUploadForm(forms.Form):
 
     def __init__(self, *args: Any, points: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.fields["point"].queryset = points
-        self.fields["point"].label_from_instance = str
+        point = cast(forms.ModelChoiceField, self.fields["point"])
+        point.queryset = points
+        point.label_from_instance = str  # type: ignore[method-assign,assignment]
 
     def point_fields(self) -> dict[str, Any]:
         p = self.cleaned_data["point"]

@@ -3,6 +3,8 @@ files read back into records, and the record-with-fit figure.  Each owns its joi
 
 from __future__ import annotations
 
+from typing import cast
+
 from django.db.models import QuerySet
 
 from analysis.core.signals.records import Record
@@ -76,5 +78,5 @@ def raw_point_choices(participant: Participant) -> QuerySet[MeasurementPoint]:
             results__submission=submission, bench__in=("linear", "curvilinear")
         )
         .select_related("device")
-        .order_by(*MeasurementPoint._meta.ordering)
+        .order_by(*cast(list[str], MeasurementPoint._meta.ordering))
     )

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from django.conf import settings
-from django.contrib.auth.models import AbstractBaseUser
+from django.contrib.auth.models import User
 from django.core.files.base import ContentFile
 from django.db import IntegrityError, connection, transaction
 from django.db.models import Q
@@ -136,7 +136,7 @@ def _reported(participant: Participant, point: MeasurementPoint) -> tuple[Submis
 
 def _complete_meta(meta: dict[str, Any], point: MeasurementPoint, field: str) -> dict[str, Any]:
     """bench and frequency_hz default to the point's; a contradiction is refused."""
-    out = {"bench": point.bench, "frequency_hz": point.frequency_hz} | meta
+    out: dict[str, Any] = {"bench": point.bench, "frequency_hz": point.frequency_hz} | meta
     for key in ("bench", "frequency_hz"):
         same = str(out[key]) == str(getattr(point, key))
         if key == "frequency_hz":
@@ -205,7 +205,7 @@ def raw_record_upload(
     point_fields: Mapping[str, Any],
     data: Upload,
     reference: Upload | None = None,
-    user: AbstractBaseUser | None = None,
+    user: User | None = None,
 ) -> RawRecord:
     """Attach raw record(s) to a point of the participant's current submission."""
     point = raw_point_find(participant, point_fields)
@@ -415,7 +415,7 @@ def raw_upload_build(
 
 
 def raw_upload_submit(
-    *, form: Any, participant: Participant, user: AbstractBaseUser | None
+    *, form: Any, participant: Participant, user: User | None
 ) -> RawRecord | None:
     """The web form's upload; errors go onto the form (None returned)."""
     data = form.cleaned_data

@@ -7,7 +7,7 @@ submission's message; the lab is told by e-mail.
 from __future__ import annotations
 
 from auditlog.models import LogEntry
-from django.contrib.auth.models import AbstractBaseUser
+from django.contrib.auth.models import User
 from django.core.mail import send_mail
 
 from labs.models import Membership, Result, Submission
@@ -28,7 +28,7 @@ def _notify(submission: Submission, subject: str, body: str) -> None:
 
 
 def submission_decide(
-    *, submission: Submission, decision: str, message: str, user: AbstractBaseUser | None
+    *, submission: Submission, decision: str, message: str, user: User | None
 ) -> Submission:
     """Accept or reject a submitted version; a rejection must say why."""
     if decision not in DECISIONS:
@@ -45,7 +45,7 @@ def submission_decide(
     return decided
 
 
-def submission_request_check(*, result: Result, user: AbstractBaseUser | None) -> None:
+def submission_request_check(*, result: Result, user: User | None) -> None:
     """Ask the laboratory to check one result, without telling the size or sign of its
     deviation (CIPM practice): the message names only the measurement point."""
     p = result.measurement_point

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from django.contrib.auth.models import AbstractBaseUser, AnonymousUser
+from django.contrib.auth.models import AnonymousUser, User
 from django.db.models import Count, Max, OuterRef, QuerySet, Subquery
 
 from labs.importers import COLUMNS, PointKey, ResultRow, TableContext, write_table
@@ -123,8 +123,8 @@ def comparison_table(comparison: Comparison) -> ComparisonTable:
     keys: list[PointKey] = []
     units: dict[str, str] = {}
     point_ids: dict[PointKey, int] = {}
-    for pk, *fields, unit in rows:
-        key = PointKey(*fields)
+    for pk, device, axis, frequency_hz, bench, direction, amplitude_m_s2, unit in rows:
+        key = PointKey(device, axis, frequency_hz, bench, direction, amplitude_m_s2)
         keys.append(key)
         units[key.device] = unit
         point_ids[key] = pk
@@ -136,7 +136,7 @@ def table_context(comparison: Comparison) -> TableContext:
     return comparison_table(comparison).context
 
 
-def user_laboratories(user: AbstractBaseUser | AnonymousUser) -> QuerySet[Laboratory]:
+def user_laboratories(user: User | AnonymousUser) -> QuerySet[Laboratory]:
     """Laboratories the user is a member of (staff or manager)."""
     if not user.is_authenticated:
         return Laboratory.objects.none()
@@ -170,7 +170,7 @@ _PARTICIPANT_BY_CODE = JoinedQuery(
 )
 
 
-def participant_for_user(*, code: str, user: AbstractBaseUser | AnonymousUser) -> Participant:
+def participant_for_user(*, code: str, user: User | AnonymousUser) -> Participant:
     """The participation in ``code`` of one of the user's laboratories (404 otherwise).
     A person in several participating laboratories gets the first by name."""
     participant = (

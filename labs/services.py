@@ -6,9 +6,10 @@ import datetime as dt
 import hashlib
 import secrets
 from collections.abc import Sequence
+from typing import Any, cast
 
 from django.conf import settings
-from django.contrib.auth.models import AbstractBaseUser
+from django.contrib.auth.models import User
 from django.db import IntegrityError, connections, router, transaction
 from django.db.backends.base.base import BaseDatabaseWrapper
 from django.utils import timezone
@@ -145,7 +146,7 @@ def submission_save(
     participant: Participant,
     rows: list[ResultRow],
     source: str,
-    user: AbstractBaseUser | None,
+    user: User | None,
     submit: bool,
     table: ComparisonTable | None = None,
     idempotency_key: str = "",
@@ -290,7 +291,7 @@ def _results(submission: Submission, values: list[tuple[object, ...]]) -> int:
 def _result_values(rows: list[ResultRow], table: ComparisonTable) -> list[tuple[object, ...]]:
     """(point id, value, unit, U, k, dof, note, repeat_sd, n_repeats) of each row, on the
     one measurement point it fits."""
-    values = []
+    values: list[tuple[object, ...]] = []
     for row in rows:
         # The importer already refused a row fitting no point or several: never store a guess.
         matches = table.context.matching_points(row)
@@ -311,7 +312,7 @@ RESULT_COLUMNS = ("submission", "measurement_point", "value", "unit", "expanded_
                   "coverage_factor", "dof", "note", "repeat_sd", "n_repeats")  # fmt: skip
 
 
-def results_insert(values: Sequence[tuple[object, ...]]) -> int:
+def results_insert(values: Sequence[Sequence[Any]]) -> int:
     """Insert raw :class:`Result` rows (tuples in :data:`RESULT_COLUMNS` order); the count.
 
     One ``COPY`` on PostgreSQL, one ``executemany`` elsewhere, inside the caller's
@@ -331,7 +332,8 @@ def results_insert(values: Sequence[tuple[object, ...]]) -> int:
 def results_sql(connection: BaseDatabaseWrapper, *, copy: bool) -> str:
     """``COPY result (...) FROM STDIN`` or ``INSERT INTO result (...) VALUES (%s, ...)``."""
     table = connection.ops.quote_name(Result._meta.db_table)
-    names = [connection.ops.quote_name(Result._meta.get_field(n).column) for n in RESULT_COLUMNS]
+    # the columns of concrete fields: get_field's union also holds relations without one
+    names = [connection.ops.quote_name(Result._meta.get_field(n).column) for n in RESULT_COLUMNS]  # type: ignore[union-attr,arg-type]
     if copy:
         return f"COPY {table} ({', '.join(names)}) FROM STDIN"
     marks = ", ".join(["%s"] * len(names))
@@ -353,7 +355,7 @@ def submission_from_file(
     participant: Participant,
     data: bytes,
     filename: str | None,
-    user: AbstractBaseUser | None,
+    user: User | None,
     submit: bool,
     idempotency_key: str = "",
 ) -> Submission:
@@ -372,9 +374,9 @@ def submission_from_file(
 def submission_from_records(
     *,
     participant: Participant,
-    records: list[object],
+    records: Sequence[object],
     source: str,
-    user: AbstractBaseUser | None,
+    user: User | None,
     submit: bool,
     idempotency_key: str = "",
 ) -> Submission:
@@ -391,14 +393,14 @@ def submission_from_records(
 
 
 def api_key_create(
-    *, laboratory: Laboratory, name: str, user: AbstractBaseUser | None
+    *, laboratory: Laboratory, name: str, user: User | None
 ) -> tuple[LabAPIKey, str]:
     """A new key for ``laboratory``; returns the row and the key, which is never shown again."""
     name = name.strip()
     if not name:
         raise ValidationFailed("Give the key a name, e.g. the software or computer using it.")
     key_obj, key = LabAPIKey.objects.create_key(name=name, laboratory=laboratory, created_by=user)
-    return key_obj, key
+    return cast(LabAPIKey, key_obj), key  # the library's create_key returns its base class
 
 
 def api_key_revoke(*, key: LabAPIKey) -> LabAPIKey:

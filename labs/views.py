@@ -8,6 +8,8 @@ call one service or selector, render.  The results grid and the upload both go t
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any, cast
+
 from django.conf import settings
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
@@ -37,6 +39,9 @@ from proficiency import views as proficiency_views
 from proficiency.errors import NotVisible, StateConflict, ValidationFailed
 from proficiency.middleware import validates_own_text
 from proficiency.models import Comparison
+
+if TYPE_CHECKING:
+    from proficiency.http import AuthenticatedHttpRequest
 
 CONTENT_TYPES = {
     "csv": "text/csv; charset=utf-8",
@@ -68,7 +73,7 @@ def _participations(request: HttpRequest) -> QuerySet[Participant]:
     )
 
 
-def _managed_lab(request: HttpRequest, lab_pk: int) -> Laboratory:
+def _managed_lab(request: AuthenticatedHttpRequest, lab_pk: int) -> Laboratory:
     """A laboratory the user manages; 404 for staff and outsiders (not visible to them)."""
     lab = Laboratory.objects.filter(
         pk=lab_pk, members__user=request.user, members__role=Membership.Role.MANAGER
@@ -119,7 +124,7 @@ def dashboard(request: HttpRequest) -> HttpResponse:
 
 @login_required
 @require_GET
-def comparison_detail(request: HttpRequest, code: str) -> HttpResponse:
+def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     participant = _participant(request, code)
     comparison = participant.comparison
     context = {
@@ -156,7 +161,9 @@ def _grid_form(participant: Participant, data: QueryDict | None = None) -> Resul
     return ResultGridForm(data, points=points, results=results)
 
 
-def _grid_save(request: HttpRequest, participant: Participant, form: ResultGridForm) -> bool:
+def _grid_save(
+    request: AuthenticatedHttpRequest, participant: Participant, form: ResultGridForm
+) -> bool:
     submit = request.POST.get("action") == "submit"
     records = form.records()
     if not records:
@@ -182,7 +189,7 @@ def _grid_save(request: HttpRequest, participant: Participant, form: ResultGridF
 @validates_own_text  # every cell is checked by the importer, named next to its input
 @login_required
 @require_http_methods(["GET", "POST"])
-def results_grid(request: HttpRequest, code: str) -> HttpResponse:
+def results_grid(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     participant = _participant(request, code)
     form = _grid_form(participant, request.POST if request.method == "POST" else None)
     if request.method == "POST":
@@ -194,7 +201,7 @@ def results_grid(request: HttpRequest, code: str) -> HttpResponse:
     return render(request, template, _grid_context(participant, form))
 
 
-def _grid_saved(request: HttpRequest, participant: Participant) -> HttpResponse:
+def _grid_saved(request: AuthenticatedHttpRequest, participant: Participant) -> HttpResponse:
     code = participant.comparison.code
     if request.POST.get("action") == "submit":
         messages.success(request, "Your results were submitted. Thank you.")
@@ -213,7 +220,7 @@ def _grid_saved(request: HttpRequest, participant: Participant) -> HttpResponse:
 
 @login_required
 @require_http_methods(["GET", "POST"])
-def results_upload(request: HttpRequest, code: str) -> HttpResponse:
+def results_upload(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     participant = _participant(request, code)
     form = ResultUploadForm(request.POST or None, request.FILES or None)
     report: ValidationFailed | None = None
@@ -248,7 +255,7 @@ def results_upload(request: HttpRequest, code: str) -> HttpResponse:
 
 @login_required
 @require_GET
-def results_template(request: HttpRequest, code: str, fmt: str) -> HttpResponse:
+def results_template(request: AuthenticatedHttpRequest, code: str, fmt: str) -> HttpResponse:
     """The comparison's measurement points as a results table with empty values to fill in."""
     if fmt not in CONTENT_TYPES:
         raise Http404("The template comes as .csv or .xlsx.")
@@ -266,7 +273,7 @@ def results_template(request: HttpRequest, code: str, fmt: str) -> HttpResponse:
 
 @login_required
 @require_GET
-def submission_history(request: HttpRequest, code: str) -> HttpResponse:
+def submission_history(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     participant = _participant(request, code)
     context = {
         "participant": participant,
@@ -281,13 +288,13 @@ def submission_history(request: HttpRequest, code: str) -> HttpResponse:
 LIST_PER_PAGE = 25
 
 
-def _page(request: HttpRequest, items: QuerySet) -> Page:  # type: ignore[type-arg]
+def _page(request: HttpRequest, items: QuerySet) -> Page:
     return Paginator(items, LIST_PER_PAGE).get_page(request.GET.get("page"))
 
 
 @login_required
 @require_GET
-def submission_detail(request: HttpRequest, code: str, version: int) -> HttpResponse:
+def submission_detail(request: AuthenticatedHttpRequest, code: str, version: int) -> HttpResponse:
     participant = _participant(request, code)
     submission = _submission(participant, version)
     context = {
@@ -305,7 +312,7 @@ def submission_detail(request: HttpRequest, code: str, version: int) -> HttpResp
 
 @login_required
 @require_GET
-def api_keys_index(request: HttpRequest) -> HttpResponse:
+def api_keys_index(request: AuthenticatedHttpRequest) -> HttpResponse:
     """``/lab/api-keys/``: the key page of the (first) laboratory the user manages."""
     lab = (
         Laboratory.objects.filter(members__user=request.user, members__role=Membership.Role.MANAGER)
@@ -325,7 +332,7 @@ def _keys_page(request: HttpRequest, lab: Laboratory, form: APIKeyCreateForm) ->
 @never_cache
 @login_required
 @require_http_methods(["GET", "POST"])
-def api_keys(request: HttpRequest, lab_pk: int) -> HttpResponse:
+def api_keys(request: AuthenticatedHttpRequest, lab_pk: int) -> HttpResponse:
     """List the laboratory's keys; POST creates one and shows it once (never again)."""
     lab = _managed_lab(request, lab_pk)
     form = APIKeyCreateForm(request.POST or None)
@@ -344,7 +351,7 @@ def api_keys(request: HttpRequest, lab_pk: int) -> HttpResponse:
 
 @login_required
 @require_http_methods(["GET", "POST"])
-def api_key_revoke(request: HttpRequest, lab_pk: int, prefix: str) -> HttpResponse:
+def api_key_revoke(request: AuthenticatedHttpRequest, lab_pk: int, prefix: str) -> HttpResponse:
     """GET asks for confirmation; POST revokes (the key stays listed, marked revoked)."""
     lab = _managed_lab(request, lab_pk)
     key = LabAPIKey.objects.filter(laboratory=lab, prefix=prefix).first()
@@ -381,7 +388,7 @@ def _raw_page(
 @csrf_exempt  # CSRF is checked below, once the size-limiting upload handler is in place
 @login_required
 @require_http_methods(["GET", "POST"])
-def raw_data(request: HttpRequest, code: str) -> HttpResponse:
+def raw_data(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     """The laboratory's raw records for ``code`` and the form to attach one."""
     from labs.raw import RawUploadLimit
     from labs.raw_forms import RawUploadForm
@@ -394,14 +401,15 @@ def raw_data(request: HttpRequest, code: str) -> HttpResponse:
         form = RawUploadForm(points=raw_point_choices(participant))
         return _raw_page(request, participant, form, too_large)
     if request.method == "POST":
-        request.upload_handlers.insert(
+        # a plain list until the body is read; RawUploadLimit is duck-typed
+        cast(list[Any], request.upload_handlers).insert(
             0, RawUploadLimit(request, limit=settings.RAW_UPLOAD_MAX_BYTES)
         )
     return _raw_data(request, code)
 
 
 @csrf_protect
-def _raw_data(request: HttpRequest, code: str) -> HttpResponse:
+def _raw_data(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     from labs.raw_forms import RawUploadForm
     from labs.raw_selectors import raw_point_choices
     from labs.raw_services import raw_upload_submit
@@ -423,7 +431,7 @@ def _raw_data(request: HttpRequest, code: str) -> HttpResponse:
 
 @login_required
 @require_GET
-def raw_record(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+def raw_record(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
     """One raw record: reported vs recomputed sensitivity, En, fs found, record with fit."""
     from labs.raw_selectors import raw_record_figure, raw_record_get, raw_records_of
 

@@ -8,6 +8,7 @@ to everyone but superusers, whatever their staff flag or model permissions say.
 
 from django.contrib import admin
 from django.contrib.admin.apps import AdminConfig
+from django.db.models import Model
 from django.http import HttpRequest
 
 
@@ -35,8 +36,8 @@ class RecordedByServicesAdmin(admin.ModelAdmin):
     results never change; a published run's scores are what was published).  Decisions
     are made on the coordinator's pages and through the API; deleting stays possible."""
 
-    def has_add_permission(self, request: HttpRequest, obj: object = None) -> bool:
+    def has_add_permission(self, request: HttpRequest, obj: Model | None = None) -> bool:
         return False
 
-    def has_change_permission(self, request: HttpRequest, obj: object = None) -> bool:
+    def has_change_permission(self, request: HttpRequest, obj: Model | None = None) -> bool:
         return False

@@ -4,8 +4,9 @@ laboratories (docs/interfaces.md §3, extended). Thin views over ``proficiency.s
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
+from django.contrib.auth.models import User
 from django.db import transaction
 from django.urls import path
 from drf_spectacular.utils import extend_schema
@@ -52,7 +53,10 @@ def comparison_create_response(request: Request) -> Response:
         raise PermissionDenied("Only coordinators may create comparisons.")
     data = _valid(NewComparisonSerializer(data=request.data))
     template = data.pop("template", "") or None
-    created = comparison_create(comparison=Comparison(**data), template_key=template, user=user)
+    # has_perm passed: a person (keys have no permissions)
+    created = comparison_create(
+        comparison=Comparison(**data), template_key=template, user=cast(User, user)
+    )
     return Response(NewComparisonSerializer(created).data, status=status.HTTP_201_CREATED)
 
 

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter, defaultdict
+from typing import TYPE_CHECKING, cast
 
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.db.models import Count, OuterRef, QuerySet, Subquery
-from django.http import Http404, HttpRequest, HttpResponse
+from django.http import Http404, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
 
@@ -41,19 +42,24 @@ from proficiency.services import (
     measurement_points_generate,
 )
 
+if TYPE_CHECKING:
+    from django.contrib.auth.models import User
+
+    from proficiency.http import AuthenticatedHttpRequest
+
 St = Submission.Status
 
 # --- who may see what ---------------------------------------------------------------------
 
 
-def coordinated_comparisons(user) -> QuerySet[Comparison]:  # type: ignore[no-untyped-def]
+def coordinated_comparisons(user: User) -> QuerySet[Comparison]:
     """Comparisons the user coordinates; a superuser coordinates them all."""
     if user.is_superuser:
         return Comparison.objects.all()
     return Comparison.objects.filter(coordinators=user)
 
 
-def coordinated(request: HttpRequest, code: str) -> Comparison:
+def coordinated(request: AuthenticatedHttpRequest, code: str) -> Comparison:
     """The comparison ``code`` if the user coordinates it; 404 otherwise (no existence leak)."""
     comparison = coordinated_comparisons(request.user).filter(code=code).first()
     if comparison is None:
@@ -61,7 +67,7 @@ def coordinated(request: HttpRequest, code: str) -> Comparison:
     return comparison
 
 
-def _may_create(user) -> bool:  # type: ignore[no-untyped-def]
+def _may_create(user: User) -> bool:
     return user.has_perm("proficiency.add_comparison")
 
 
@@ -79,7 +85,7 @@ def _latest_status(participants: QuerySet[Participant]) -> QuerySet[Participant]
 
 @login_required
 @require_GET
-def dashboard(request: HttpRequest) -> HttpResponse:
+def dashboard(request: AuthenticatedHttpRequest) -> HttpResponse:
     comparisons = coordinated_comparisons(request.user).annotate(
         n_participants=Count("participants", distinct=True)
     )
@@ -87,7 +93,8 @@ def dashboard(request: HttpRequest) -> HttpResponse:
         raise Http404("You coordinate no comparison.")
     counts: dict[int, Counter[str]] = defaultdict(Counter)
     rows = _latest_status(Participant.objects.filter(comparison__in=comparisons))
-    for comparison_id, status in rows.values_list("comparison_id", "latest_status"):
+    # latest_status: _latest_status's annotation, which its QuerySet[Participant] type drops
+    for comparison_id, status in rows.values_list("comparison_id", "latest_status"):  # type: ignore[misc]
         counts[comparison_id][status or "none"] += 1
     items = [(c, dict(counts[c.pk])) for c in comparisons.order_by("-created_at", "code")]
     context = {"items": items, "may_create": _may_create(request.user), "statuses": St.choices}
@@ -96,7 +103,7 @@ def dashboard(request: HttpRequest) -> HttpResponse:
 
 @login_required
 @require_http_methods(["GET", "POST"])
-def comparison_create(request: HttpRequest) -> HttpResponse:
+def comparison_create(request: AuthenticatedHttpRequest) -> HttpResponse:
     if not _may_create(request.user):
         raise Http404("You may not create comparisons.")
     form = ComparisonCreateForm(request.POST or None)
@@ -113,7 +120,7 @@ def comparison_create(request: HttpRequest) -> HttpResponse:
 
 @login_required
 @require_http_methods(["GET", "POST"])
-def comparison_edit(request: HttpRequest, code: str) -> HttpResponse:
+def comparison_edit(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     form = ComparisonForm(request.POST or None, instance=comparison)
     if comparison.status == ComparisonStatus.PUBLISHED:
@@ -128,7 +135,7 @@ def comparison_edit(request: HttpRequest, code: str) -> HttpResponse:
 
 @login_required
 @require_GET
-def comparison_detail(request: HttpRequest, code: str) -> HttpResponse:
+def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     participants = _latest_status(comparison.participants.select_related("laboratory"))
     context = {
@@ -145,7 +152,7 @@ def comparison_detail(request: HttpRequest, code: str) -> HttpResponse:
 
 @login_required
 @require_POST
-def comparison_status(request: HttpRequest, code: str) -> HttpResponse:
+def comparison_status(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     target = request.POST.get("to", "")
     if target not in (ComparisonStatus.OPEN, ComparisonStatus.CLOSED):
@@ -164,7 +171,7 @@ def comparison_status(request: HttpRequest, code: str) -> HttpResponse:
 
 @login_required
 @require_http_methods(["GET", "POST"])
-def report_notes(request: HttpRequest, code: str) -> HttpResponse:
+def report_notes(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     """Comments, conclusions and the authoriser printed in the reports."""
     from analysis.reports.services import report_notes_update
 
@@ -196,7 +203,7 @@ def report_notes(request: HttpRequest, code: str) -> HttpResponse:
 
 @login_required
 @require_http_methods(["GET", "POST"])
-def device_add(request: HttpRequest, code: str) -> HttpResponse:
+def device_add(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     form = DeviceForm(request.POST or None, comparison=comparison)
     if request.method == "POST" and form.is_valid():
@@ -224,7 +231,7 @@ def _generate(comparison: Comparison, data: dict) -> list[MeasurementPoint]:
 
 @login_required
 @require_http_methods(["GET", "POST"])
-def points_generate(request: HttpRequest, code: str) -> HttpResponse:
+def points_generate(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     initial = {
         "template": comparison.protocol if comparison.protocol in protocols.TEMPLATES else ""
@@ -244,7 +251,7 @@ def points_generate(request: HttpRequest, code: str) -> HttpResponse:
 
 @login_required
 @require_http_methods(["GET", "POST"])
-def point_edit(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+def point_edit(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
     comparison = coordinated(request, code)
     point = get_object_or_404(comparison.measurement_points.select_related("device"), pk=pk)
     form = PointOverrideForm(request.POST or None, instance=point)
@@ -261,7 +268,7 @@ def point_edit(request: HttpRequest, code: str, pk: int) -> HttpResponse:
 
 @login_required
 @require_http_methods(["GET", "POST"])
-def participants_invite(request: HttpRequest, code: str) -> HttpResponse:
+def participants_invite(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     form = InviteForm(request.POST or None, comparison=comparison)
     if request.method == "POST" and form.is_valid():
@@ -277,7 +284,9 @@ def participants_invite(request: HttpRequest, code: str) -> HttpResponse:
 
 @login_required
 @require_POST
-def participant_reference(request: HttpRequest, code: str, participant: str) -> HttpResponse:
+def participant_reference(
+    request: AuthenticatedHttpRequest, code: str, participant: str
+) -> HttpResponse:
     """Mark one participant as the reference (pilot) laboratory; the others lose the mark."""
     comparison = coordinated(request, code)
     chosen = get_object_or_404(comparison.participants, code=participant)
@@ -295,7 +304,7 @@ REVIEW_PER_PAGE = 50
 
 @login_required
 @require_GET
-def review(request: HttpRequest, code: str) -> HttpResponse:
+def review(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     from django.core.paginator import Paginator
 
     comparison = coordinated(request, code)
@@ -328,7 +337,7 @@ def _others(comparison: Comparison, participant: Participant) -> dict[int, list[
     return by_point
 
 
-POINT_ORDER = [f"measurement_point__{f}" for f in MeasurementPoint._meta.ordering]
+POINT_ORDER = [f"measurement_point__{f}" for f in cast(list[str], MeasurementPoint._meta.ordering)]
 
 
 def _review_rows(submission: Submission) -> list[dict]:
@@ -347,7 +356,7 @@ def _review_rows(submission: Submission) -> list[dict]:
 @login_required
 @require_http_methods(["GET", "POST"])
 def submission_review(
-    request: HttpRequest, code: str, participant: str, version: int
+    request: AuthenticatedHttpRequest, code: str, participant: str, version: int
 ) -> HttpResponse:
     comparison = coordinated(request, code)
     submission = get_object_or_404(
@@ -382,7 +391,7 @@ def submission_review(
 
 @login_required
 @require_POST
-def result_check(request: HttpRequest, code: str, pk: int) -> HttpResponse:
+def result_check(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
     comparison = coordinated(request, code)
     result = get_object_or_404(
         Result.objects.select_related("measurement_point__device", "submission__participant"),
@@ -406,7 +415,7 @@ RAW_PER_PAGE = 10
 
 @login_required
 @require_GET
-def raw_review(request: HttpRequest, code: str) -> HttpResponse:
+def raw_review(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     """Every participant's raw records (by code): reported vs recomputed, En, fs, fit."""
     from django.core.paginator import Paginator
 

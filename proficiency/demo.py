@@ -17,6 +17,7 @@ import secrets
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from django.conf import settings
@@ -35,6 +36,9 @@ from proficiency.models import (
     SigmaPtMode,
 )
 from proficiency.services import comparison_apply_template
+
+if TYPE_CHECKING:
+    from analysis.core.signals.records import Record
 
 DEMO_CODE = "IMU-2024-DEMO"
 COORDINATORS_GROUP = "coordinators"
@@ -332,11 +336,11 @@ def _raw_records(participant: Participant) -> None:
                           reference=reference)  # fmt: skip
 
 
-def _int16(record) -> bytes:  # type: ignore[no-untyped-def]
+def _int16(record: Record) -> bytes:
     return np.ascontiguousarray(record.data.T).astype("<i2").tobytes()
 
 
-def _csv(record) -> bytes:  # type: ignore[no-untyped-def]
+def _csv(record: Record) -> bytes:
     rows = [",".join(record.channels)] + [f"{v:.9g}" for v in record.data[0]]
     return ("\n".join(rows) + "\n").encode()
 

@@ -3,7 +3,7 @@ invitations and review decisions.  They collect and check input; the writes are 
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 from django import forms
 
@@ -23,9 +23,11 @@ from proficiency.models import (
 class BootstrapMixin:
     """Bootstrap 5 classes on every widget (no crispy-forms needed for these small forms)."""
 
+    fields: dict[str, forms.Field]  # the form's, this mixin comes first in its bases
+
     def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)  # type: ignore[call-arg]
-        for field in self.fields.values():  # type: ignore[attr-defined]
+        super().__init__(*args, **kwargs)
+        for field in self.fields.values():
             widget = field.widget
             if isinstance(widget, forms.CheckboxInput | forms.CheckboxSelectMultiple):
                 css = "form-check-input"
@@ -67,7 +69,7 @@ class ComparisonForm(BootstrapMixin, forms.ModelForm):
         }
 
     def clean(self) -> dict[str, Any]:
-        data = super().clean()
+        data = cast(dict[str, Any], super().clean())  # ModelForm.clean: its cleaned_data
         mode, value = data.get("sigma_pt_mode"), data.get("sigma_pt_value")
         if mode in ("absolute", "relative") and not value:
             self.add_error("sigma_pt_value", "A prescribed σ_pt needs a value > 0.")
@@ -142,7 +144,7 @@ class PointGridForm(BootstrapMixin, forms.Form):
     )
 
     def clean(self) -> dict[str, Any]:
-        data = super().clean()
+        data = cast(dict[str, Any], super().clean())  # Form.clean: its cleaned_data
         if data.get("template"):
             return data
         if not data.get("axes"):
@@ -165,7 +167,7 @@ class PointOverrideForm(BootstrapMixin, forms.ModelForm):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         choices = [("", "Comparison's method"), *AssignedValueMethod.choices]
-        self.fields["assigned_value_method"].choices = choices
+        cast(forms.ChoiceField, self.fields["assigned_value_method"]).choices = choices
 
 
 class InviteForm(BootstrapMixin, forms.Form):
@@ -175,9 +177,10 @@ class InviteForm(BootstrapMixin, forms.Form):
 
     def __init__(self, *args: Any, comparison: Comparison, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.fields["laboratories"].queryset = Laboratory.objects.exclude(
-            participations__comparison=comparison
-        ).order_by("name")
+        field = cast(forms.ModelMultipleChoiceField, self.fields["laboratories"])
+        field.queryset = Laboratory.objects.exclude(participations__comparison=comparison).order_by(
+            "name"
+        )
 
 
 class DecisionForm(BootstrapMixin, forms.Form):

@@ -217,7 +217,7 @@ def validates_own_text(view: Callable[..., Any]) -> Callable[..., Any]:
 def _check_when_parsed(request: HttpRequest) -> None:
     """Check a multipart body's text fields right after Django parses it (Django removes
     unprintable characters from file names; the API's parsers check what they parse)."""
-    load = request._load_post_and_files  # type: ignore[attr-defined]
+    load = request._load_post_and_files
 
     def load_and_check() -> None:
         load()
@@ -225,7 +225,8 @@ def _check_when_parsed(request: HttpRequest) -> None:
         if not getattr(match.func if match else None, "validates_control_characters", False):
             check_query_dict(request._post)  # type: ignore[attr-defined]
 
-    request._load_post_and_files = load_and_check  # type: ignore[attr-defined]
+    # wrapping Django's private body parsing on this one request object
+    request._load_post_and_files = load_and_check  # type: ignore[method-assign]
 
 
 def bad_request(request: HttpRequest, exception: Exception) -> HttpResponse:

@@ -32,7 +32,7 @@ class ValuesRendering:
 
     def __init__(
         self,
-        serializer_class: type[serializers.Serializer],
+        serializer_class: type[serializers.ModelSerializer],
         *,
         annotations: Mapping[str, str] | None = None,
         computed: Iterable[str] = (),

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from django.contrib.auth.models import AbstractBaseUser, AnonymousUser
+from django.contrib.auth.models import AnonymousUser, User
 from django.db.models import Q, QuerySet
 
 from proficiency.models import Comparison
 
 
-def comparisons_visible_to(user: AbstractBaseUser | AnonymousUser) -> QuerySet[Comparison]:
+def comparisons_visible_to(user: User | AnonymousUser) -> QuerySet[Comparison]:
     """Comparisons a user may see: superusers all; coordinators theirs; lab members
     those their laboratory takes part in. Anonymous users see none."""
     if not user.is_authenticated:

@@ -4,12 +4,16 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING
 
 from django.db import transaction
 
 from proficiency import protocols
 from proficiency.errors import InvalidTransition, StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
+
+if TYPE_CHECKING:
+    from django.contrib.auth.models import User
 
 S = ComparisonStatus
 
@@ -208,7 +212,7 @@ def comparison_publish(*, comparison: Comparison, user: object | None = None) ->
 
 @transaction.atomic
 def comparison_create(
-    *, comparison: Comparison, template_key: str | None, user: object
+    *, comparison: Comparison, template_key: str | None, user: User
 ) -> Comparison:
     """Store a new (draft) comparison from validated fields; its creator coordinates it."""
     comparison.protocol = template_key or protocols.CUSTOM

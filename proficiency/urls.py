@@ -16,7 +16,7 @@ admin.site.site_title = "PT administration"
 # django.contrib.auth's pages, with the password reset throttled (proficiency.accounts)
 AUTH_URLS = [
     path("password_reset/", PasswordResetView.as_view(), name="password_reset"),
-    *(p for p in auth_urls.urlpatterns if p.name != "password_reset"),
+    *(p for p in auth_urls.urlpatterns if p.name != "password_reset"),  # type: ignore[union-attr]  # auth.urls: URLPatterns only
 ]
 
 urlpatterns = [

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 from django.conf import settings
-from django.contrib.auth.models import AbstractBaseUser
+from django.contrib.auth.models import User
 
 import proficiency
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
@@ -64,8 +64,8 @@ _SCORE_FIELDS = (
 )
 
 
-def person(user: AbstractBaseUser) -> str:
-    return user.get_full_name() or user.get_username()  # type: ignore[attr-defined]
+def person(user: User) -> str:
+    return user.get_full_name() or user.get_username()
 
 
 def authoriser(comparison: Comparison) -> str:

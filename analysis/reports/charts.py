@@ -22,7 +22,7 @@ import hashlib
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import matplotlib
 import numpy as np
@@ -71,7 +71,8 @@ def _raster(fig: Figure) -> Raster:
     """Draw and grab the RGB pixels (white background, no alpha: no soft mask needed)."""
     with matplotlib.rc_context(RC):
         fig.canvas.draw()
-    rgb = np.ascontiguousarray(np.asarray(fig.canvas.buffer_rgba())[:, :, :3]).tobytes()
+    canvas = cast(FigureCanvasAgg, fig.canvas)  # the one _figure gave it
+    rgb = np.ascontiguousarray(np.asarray(canvas.buffer_rgba())[:, :, :3]).tobytes()
     height, width = fig.canvas.get_width_height()[::-1]
     return Raster(width, height, zlib.compress(rgb), hashlib.md5(rgb).hexdigest())
 

@@ -53,7 +53,7 @@ def stability_rows(
             after=float(ybar_a[i]),
             delta=float(check.delta[i]),
             en=float(check.en[i]),
-            limit=0.3 * sigma[p] if sigma.get(p) else None,
+            limit=0.3 * s if (s := sigma.get(p)) else None,
             stable=bool(check.stable[i]),
             u_stab=float(check.u_stab[i]),
         )

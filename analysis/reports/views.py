@@ -2,12 +2,11 @@
 
 from __future__ import annotations
 
-from typing import cast
+from typing import TYPE_CHECKING
 
-from django.contrib.auth.base_user import AbstractBaseUser
 from django.contrib.auth.decorators import login_required
 from django.core.paginator import Paginator
-from django.http import Http404, HttpRequest, HttpResponse
+from django.http import Http404, HttpResponse
 from django.shortcuts import render
 from django.urls import path
 
@@ -15,14 +14,17 @@ from analysis.reports.access import reports_visible
 from labs.api.permissions import Caller, comparison_access
 from proficiency.errors import NotVisible
 
+if TYPE_CHECKING:
+    from proficiency.http import AuthenticatedHttpRequest
+
 #: every version of every report is kept, so the list grows with each issue
 REPORTS_PER_PAGE = 50
 
 
 @login_required
-def reports_page(request: HttpRequest, code: str) -> HttpResponse:
+def reports_page(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     try:
-        access = comparison_access(Caller(user=cast(AbstractBaseUser, request.user)), code)
+        access = comparison_access(Caller(user=request.user), code)
     except NotVisible:
         raise Http404(f"No comparison {code!r} is visible to you.") from None
     context = {

@@ -14,7 +14,7 @@ key is refused with 401 and a message saying which, never silently ignored.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, cast
+from typing import Any, ClassVar, cast
 
 from drf_spectacular.extensions import OpenApiAuthenticationExtension
 from rest_framework import authentication, exceptions
@@ -35,8 +35,8 @@ class LabKeyPrincipal:
     is_active = True
     is_staff = False
     is_superuser = False
-    pk = None
-    id = None
+    pk: ClassVar[None] = None  # not dataclass fields
+    id: ClassVar[None] = None
 
     @property
     def laboratory(self) -> Laboratory:

@@ -17,8 +17,9 @@ exist. 403 is kept for a visible comparison on which the caller lacks the role
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
-from django.contrib.auth.models import AbstractBaseUser
+from django.contrib.auth.models import User
 from django.db.models import Count, QuerySet
 from rest_framework.exceptions import PermissionDenied
 from rest_framework.request import Request
@@ -35,7 +36,7 @@ from proficiency.selectors import comparisons_visible_to
 class Caller:
     """A laboratory acting through a key (``user`` is ``None``), or a signed-in person."""
 
-    user: AbstractBaseUser | None = None
+    user: User | None = None
     laboratory: Laboratory | None = None
 
 
@@ -49,7 +50,7 @@ class ComparisonAccess:
 def caller_of(request: Request) -> Caller:
     if isinstance(request.user, LabKeyPrincipal):
         return Caller(laboratory=request.user.laboratory)
-    return Caller(user=request.user)
+    return Caller(user=cast(User, request.user))  # IsAuthenticated: a person, if not a key
 
 
 def comparisons_for(caller: Caller) -> QuerySet[Comparison]:

@@ -6,7 +6,7 @@ participant's (by code); another laboratory's record is 404.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 from django.conf import settings
 from django.db.models import QuerySet
@@ -50,7 +50,8 @@ class RawDataCollection(ApiView, generics.ListAPIView):
         if request.method == "POST":  # before anything (CSRF, auth) reads the body
             _check_content_length(request, raw_request_limit(), "upload")
             limit = RawUploadLimit(request._request, limit=settings.RAW_UPLOAD_MAX_BYTES)
-            request._request.upload_handlers.insert(0, limit)
+            # a plain list until the body is read; RawUploadLimit is duck-typed
+            cast(list[Any], request._request.upload_handlers).insert(0, limit)
         super().initial(request, *args, **kwargs)
 
     @extend_schema(

@@ -28,7 +28,8 @@ class ErrorSerializer(serializers.Serializer):
     """Every error answer: ``{"detail": "...", "errors": [{"row", "field", "message"}]}``."""
 
     detail = serializers.CharField()
-    errors = RowErrorSerializer(many=True)
+    # a field: the serializer metaclass moves it into _declared_fields, .errors stays
+    errors = RowErrorSerializer(many=True)  # type: ignore[assignment]
 
 
 def as_row_errors(errors: dict[str, Any]) -> list[dict[str, object]]:

@@ -58,8 +58,12 @@ def _sliding_log_script() -> tuple[Any, Any] | None:
 
 
 class _ScopedRate(SimpleRateThrottle):
+    num_requests: int | None  # set by SimpleRateThrottle.__init__ (parse_rate)
+    duration: int | None
+
     def get_rate(self) -> str | None:
-        return api_settings.DEFAULT_THROTTLE_RATES.get(self.scope)
+        # the stubs type the rates as numbers (DRF's are "n/period") and keys as str only
+        return api_settings.DEFAULT_THROTTLE_RATES.get(self.scope)  # type: ignore[return-value,arg-type]
 
     def allow_request(self, request: Request, view: APIView) -> bool:
         redis = _sliding_log_script() if self.rate is not None else None

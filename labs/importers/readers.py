@@ -20,10 +20,14 @@ import io
 import zipfile
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from .errors import MAX_LISTED_ERRORS, ImportErrors, RowError, fatal
 from .schema import COLUMNS
 from .values import display, human_size, is_blank
+
+if TYPE_CHECKING:
+    from openpyxl.workbook.workbook import Workbook
 
 MAX_UNCOMPRESSED_BYTES = 50 * 2**20
 MAX_COMPRESSION_RATIO = 100
@@ -299,7 +303,7 @@ def _check_sizes(members: list[zipfile.ZipInfo]) -> None:
             )
 
 
-def open_workbook(data: bytes) -> object:
+def open_workbook(data: bytes) -> Workbook:
     """The workbook read-only, its worksheets not parsed yet (see :func:`_xlsx_records`).
 
     openpyxl's ``load_workbook(read_only=True)`` parses every worksheet that lacks a
@@ -308,11 +312,11 @@ def open_workbook(data: bytes) -> object:
     from openpyxl.reader.excel import ExcelReader  # imported here: CSV-only callers do not pay
     from openpyxl.worksheet._read_only import ReadOnlyWorksheet
 
-    class Unsized(ReadOnlyWorksheet):  # type: ignore[misc]
+    class Unsized(ReadOnlyWorksheet):
         def _get_size(self) -> None:
             pass
 
-    class Reader(ExcelReader):  # type: ignore[misc]
+    class Reader(ExcelReader):
         def read_worksheets(self) -> None:
             for sheet, rel in self.parser.find_sheets():
                 if rel.target in self.valid_files and "chartsheet" not in rel.Type:
@@ -328,8 +332,8 @@ def open_workbook(data: bytes) -> object:
     return reader.wb
 
 
-def _pick_worksheet(workbook: object) -> object:
-    sheets = list(workbook.worksheets)  # type: ignore[attr-defined]
+def _pick_worksheet(workbook: Workbook) -> object:
+    sheets = list(workbook.worksheets)
     if not sheets:
         raise fatal("the workbook has no worksheet")
     named = [ws for ws in sheets if ws.title.strip().lower() == "results"]

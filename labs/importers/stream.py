@@ -109,7 +109,8 @@ def _chunks(
     rows are cut to the header's named cells (``shape``), whose row errors go along."""
     batch: list[tuple[int, list[object]]] = []
     named = [name for name in names if name]
-    shape.errors = found = []
+    found: list[RowError] = []
+    shape.errors = found
     fit = shape.fit
     for number, cells in records:
         if not _blank_row(cells):

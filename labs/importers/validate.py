@@ -142,8 +142,8 @@ class _RowCheck:
         if not value > 0:
             self.fail(field, f"must be > 0, got {display(raw)}")
             return None
-        if not (allow_inf and value == math.inf) and (problem := magnitude_problem(value)):
-            self.fail(field, problem)
+        if not (allow_inf and value == math.inf) and (issue := magnitude_problem(value)):
+            self.fail(field, issue)
             return None
         return value
 

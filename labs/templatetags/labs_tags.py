@@ -6,7 +6,7 @@ import datetime as dt
 from collections.abc import Iterable
 
 from django import template
-from django.contrib.auth.models import AbstractBaseUser, AnonymousUser
+from django.contrib.auth.models import AnonymousUser, User
 from django.db.models import QuerySet
 from django.utils import timezone
 from django.utils.html import format_html
@@ -18,14 +18,14 @@ from proficiency.protocols import BenchPlan
 
 register = template.Library()
 
-_BADGES = {
+_BADGES: dict[str, str] = {
     ComparisonStatus.DRAFT: "text-bg-secondary",
     ComparisonStatus.OPEN: "text-bg-success",
     ComparisonStatus.CLOSED: "text-bg-dark",
     ComparisonStatus.ANALYSED: "text-bg-info",
     ComparisonStatus.PUBLISHED: "text-bg-primary",
 }
-_SUBMISSION_BADGES = {
+_SUBMISSION_BADGES: dict[str, str] = {
     Submission.Status.DRAFT: "text-bg-warning",
     Submission.Status.SUBMITTED: "text-bg-primary",
     Submission.Status.ACCEPTED: "text-bg-success",
@@ -63,7 +63,7 @@ def local_time(value: dt.datetime | None) -> str:
 
 
 @register.simple_tag
-def managed_laboratories(user: AbstractBaseUser | AnonymousUser) -> QuerySet[Laboratory]:
+def managed_laboratories(user: User | AnonymousUser) -> QuerySet[Laboratory]:
     """Laboratories whose API keys the user may manage (navigation link)."""
     if not user.is_authenticated:
         return Laboratory.objects.none()
