@@ -195,11 +195,19 @@ def cells_from_summaries(
 def _cell_mode(cells: Cells, mask: BoolArray) -> IntArray:
     """Per group, the cell size that occurs most often among ``mask`` cells (smallest on a
     tie): the n used for the critical values of k and C with unbalanced cells."""
-    width = int(cells.n.max()) + 1 if cells.n.size else 1
-    table = np.bincount(
-        cells.group[mask] * width + cells.n[mask], minlength=cells.n_groups * width
-    ).reshape(cells.n_groups, width)
-    return np.asarray(np.argmax(table, axis=1), dtype=np.intp)
+    out = np.zeros(cells.n_groups, dtype=np.intp)
+    if not np.any(mask):
+        return out
+    # distinct (group, n) pairs with their counts, not a table of every n up to the
+    # largest: n may be a laboratory's 10⁹ repeats
+    pairs, counts = np.unique(
+        np.stack([cells.group[mask], cells.n[mask]], axis=1), axis=0, return_counts=True
+    )
+    order = np.lexsort((pairs[:, 1], -counts, pairs[:, 0]))  # per group: most, then smallest
+    ranked = pairs[order]
+    first = np.r_[True, ranked[1:, 0] != ranked[:-1, 0]]
+    out[ranked[first, 0]] = ranked[first, 1]
+    return out
 
 
 @dataclass(frozen=True)

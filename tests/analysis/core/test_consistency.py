@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import tracemalloc
 
 import numpy as np
 import pytest
@@ -235,3 +236,46 @@ def test_grubbs_identical_values_are_degenerate_despite_rounding() -> None:
     res = c.grubbs(np.array([v, v, v]), Groups.from_index([0, 0, 0]))
     assert res.degenerate[0]
     assert res.g_high[0] == 0.0 and res.code_high[0] == 0 and res.code_low[0] == 0
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.tuples(st.integers(0, 4), st.integers(1, 9), st.booleans()), min_size=1,
+             max_size=40)
+)  # fmt: skip
+def test_cell_mode_is_the_most_frequent_size_smallest_on_a_tie(
+    cells_given: list[tuple[int, int, bool]],
+) -> None:
+    """Against a count in plain Python: per group, the n that occurs most often among the
+    masked cells (the smallest on a tie; 0 where a group has none)."""
+    group = np.array([g for g, _, _ in cells_given], dtype=np.intp)
+    n = np.array([k for _, k, _ in cells_given], dtype=np.intp)
+    mask = np.array([m for _, _, m in cells_given])
+    cells = c.Cells(group, np.arange(group.size), n, np.zeros(group.size),
+                    np.zeros(group.size), 5)  # fmt: skip
+    expected = []
+    for g in range(5):
+        sizes = [int(k) for k, gg, m in zip(n, group, mask, strict=True) if gg == g and m]
+        counts = {k: sizes.count(k) for k in sizes}
+        expected.append(min(counts, key=lambda k: (-counts[k], k)) if counts else 0)
+    assert c._cell_mode(cells, mask).tolist() == expected
+
+
+def test_a_billion_repeats_cost_no_memory() -> None:
+    """n up to 10⁹ is a valid number of repeats (docs/interfaces.md §1): the mode of the
+    cell sizes is taken over the distinct sizes, never a table up to the largest (which
+    asked numpy for 134 GiB in a service run)."""
+    groups = Groups.from_index([0, 0, 0, 1, 1, 1])
+    cells = c.cells_from_summaries(
+        [1.0, 1.1, 1.2, 2.0, 2.1, 2.2], [0.1, 0.2, 0.1, 0.1, 0.3, 0.2],
+        [10**9, 5, 5, 10**9, 10**9, 5], [0, 1, 2, 0, 1, 2], groups,
+    )  # fmt: skip
+    tracemalloc.start()  # numpy reports its buffers to tracemalloc
+    try:
+        mode = c._cell_mode(cells, np.ones(6, dtype=bool))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert mode.tolist() == [5, 10**9]
+    assert peak < 1_000_000  # bytes: a few small arrays (the table was 16 GB here)
+    assert c.mandel_cells(cells).k.size == 6
