@@ -49,7 +49,12 @@ EXTREMES = (
 FIELDS = (
     "sensitivity", "expanded_uncertainty", "relative_uncertainty", "coverage_factor", "dof",
     "sensitivity_over_uncertainty",  # x = v, u = 1/v: x/u and 1/u² at their extremes at once
+    "repeat_sd", "n_repeats",  # the repeats behind a result: Mandel's k, Cochran's test
 )  # fmt: skip
+#: more values for one field: the edges of the whole numbers n_repeats takes
+MORE = {"n_repeats": ("1", "2", "2.5", "5.0", "1000000000", "1000000001")}
+#: the partner of a field that is given only with it (docs/interfaces.md §1)
+PARTNER = {"repeat_sd": ("n_repeats", "5"), "n_repeats": ("repeat_sd", "0.4")}
 
 
 def _row(point, value=420.0, u="8"):
@@ -86,6 +91,8 @@ def round_(django_capture_on_commit_callbacks):
         keys[code] = api_key_create(laboratory=lab, name="soft", user=None)[1]
         if code != "SWA":
             rows = [_row(p, 420.0 + 0.5 * i + 0.01 * j) for j, p in enumerate(points)]
+            for row in rows:  # repeats from two labs: the consistency tools have work to do
+                row.update(repeat_sd=0.3 + 0.1 * i, n_repeats=5)
             answer = _client(keys[code]).post(SUBMIT, {"results": rows}, format="json")
             assert answer.status_code == 201, answer.content
     return comparison, points, keys, django_capture_on_commit_callbacks
@@ -99,15 +106,24 @@ def _with(field: str, text: str, point) -> dict:
         row["sensitivity"] = text
         value = float(text)
         row["expanded_uncertainty"] = repr(2.0 / value) if value else "0"  # u = 1/v
-    elif field in ("coverage_factor", "dof"):
-        row[field] = text
     else:
         row[field] = text
+    if field in PARTNER:
+        partner, value = PARTNER[field]
+        row[partner] = value
     return row
 
 
 def _finite_or_none(*values) -> bool:
     return all(v is None or math.isfinite(v) for v in values)
+
+
+def _json_finite(value) -> bool:
+    if isinstance(value, dict):
+        return all(_json_finite(v) for v in value.values())
+    if isinstance(value, list):
+        return all(_json_finite(v) for v in value)
+    return not isinstance(value, float) or math.isfinite(value)
 
 
 @pytest.mark.parametrize("field", FIELDS)
@@ -119,7 +135,7 @@ def test_a_value_is_refused_at_validation_or_carried_to_the_report(round_, field
         "sensitivity_over_uncertainty": "sensitivity",
     }.get(field, field)
     accepted: list[str] = []
-    for text in EXTREMES:
+    for text in EXTREMES + MORE.get(field, ()):
         rows = [_row(p) for p in points]
         rows[0] = _with(field, text, points[0])
         before = Result.objects.count()
@@ -137,7 +153,10 @@ def test_a_value_is_refused_at_validation_or_carried_to_the_report(round_, field
         else:
             accepted.append(text)
     # what a metrologist would type must still pass (the bounds are far from real values)
-    assert {"1e-20", "1e20"} <= set(accepted) or field == "coverage_factor", accepted
+    if field == "n_repeats":
+        assert set(accepted) == {"2", "5.0", "1000000000"}, accepted
+    else:
+        assert {"1e-20", "1e20"} <= set(accepted) or field == "coverage_factor", accepted
     # an infinite number of degrees of freedom is the GUM's "known exactly"
     never = {"-inf", "nan"} if field == "dof" else {"inf", "-inf", "nan", "1e309"}
     assert not never & set(accepted), accepted
@@ -162,6 +181,11 @@ def test_a_value_is_refused_at_validation_or_carried_to_the_report(round_, field
     assert all(_finite_or_none(s.en, s.zeta, s.z, s.d) for s in scores), field
     assigned = AssignedValue.objects.filter(run=run)
     assert all(_finite_or_none(a.value, a.standard_uncertainty) for a in assigned), field
+    # the consistency records (Mandel's h and k, Cochran's C from the repeats) too
+    assert all(_json_finite(a.consistency) for a in assigned), field
+    if field in PARTNER:
+        repeats = sorted(a.consistency["p_repeats"] for a in assigned)
+        assert repeats == [2] * (len(points) - len(accepted)) + [3] * len(accepted), repeats
 
     comparison.refresh_from_db()
     participant = Participant.objects.get(comparison=comparison, code="SWA")
