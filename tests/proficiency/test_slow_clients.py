@@ -18,6 +18,7 @@ import os
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -56,7 +57,10 @@ def gunicorn(log: Path | None = None, **extra: str) -> Iterator[int]:
     env.update(
         DEBUG="false", SECRET_KEY="x" * 60 + "-test-slow-clients", ALLOWED_HOSTS="127.0.0.1",
         EMAIL_URL="smtp://127.0.0.1:25", GUNICORN_BIND=f"127.0.0.1:{port}",
-        WEB_CONCURRENCY=str(WORKERS), LOG_FORMAT="plain", **extra,
+        WEB_CONCURRENCY=str(WORKERS), LOG_FORMAT="plain",
+        # its own database: /healthz then answers whatever database DATABASE_URL names
+        # (a CI_DATABASE_URL that pytest never creates gave 503s with tracebacks)
+        DATABASE_URL=f"sqlite:///{tempfile.mkdtemp(prefix='slow-clients-')}/db.sqlite3", **extra,
     )  # fmt: skip
     out = log.open("wb") if log else subprocess.DEVNULL
     proc = subprocess.Popen(
