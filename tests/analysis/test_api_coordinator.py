@@ -39,8 +39,8 @@ def user(name):
 
 @pytest.fixture
 def personas(demo):
-    other = UserFactory(username="other-coordinator")
-    ComparisonFactory(code="OTHER-01").coordinators.add(other)
+    other = UserFactory.create(username="other-coordinator")
+    ComparisonFactory.create(code="OTHER-01").coordinators.add(other)
     lab_a = Laboratory.objects.get(name="Alpine Vibration Metrology")  # lab03
     _, key_a = api_key_create(laboratory=lab_a, name="software", user=None)
     return {

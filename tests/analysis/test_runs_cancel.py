@@ -88,8 +88,8 @@ def test_a_chunk_storing_while_the_run_is_cancelled_stores_nothing(running, monk
 @pytest.mark.parametrize("persona", ["other_coordinator", "lab03", "anonymous"])
 def test_others_cannot_cancel(running, persona):
     if persona == "other_coordinator":
-        other = UserFactory(username="other-coordinator")
-        ComparisonFactory(code="OTHER-01").coordinators.add(other)
+        other = UserFactory.create(username="other-coordinator")
+        ComparisonFactory.create(code="OTHER-01").coordinators.add(other)
         who = other
     else:
         who = None if persona == "anonymous" else user(persona)

@@ -37,8 +37,8 @@ def user(name):
 
 @pytest.fixture
 def other_coordinator(demo):
-    other = UserFactory(username="other-coordinator")
-    ComparisonFactory(code="IMU-OTHER").coordinators.add(other)
+    other = UserFactory.create(username="other-coordinator")
+    ComparisonFactory.create(code="IMU-OTHER").coordinators.add(other)
     return other
 
 

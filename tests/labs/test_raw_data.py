@@ -34,26 +34,29 @@ REPORTED, REPORTED_U = 420.0, 8.0
 
 @pytest.fixture
 def world():
-    lab_a, lab_b = LaboratoryFactory(name="Alpha Secret Lab"), LaboratoryFactory(name="Bravo")
+    lab_a, lab_b = (
+        LaboratoryFactory.create(name="Alpha Secret Lab"),
+        LaboratoryFactory.create(name="Bravo"),
+    )
     users = {
-        "a": MembershipFactory(laboratory=lab_a, role=Membership.Role.STAFF).user,
-        "b": MembershipFactory(laboratory=lab_b).user,
-        "coord": UserFactory(username="coord-web"),
-        "coord2": UserFactory(username="coord-other"),
+        "a": MembershipFactory.create(laboratory=lab_a, role=Membership.Role.STAFF).user,
+        "b": MembershipFactory.create(laboratory=lab_b).user,
+        "coord": UserFactory.create(username="coord-web"),
+        "coord2": UserFactory.create(username="coord-other"),
     }
-    comparison = ComparisonFactory(code=CODE, status="closed", protocol="custom")
+    comparison = ComparisonFactory.create(code=CODE, status="closed", protocol="custom")
     comparison.coordinators.add(users["coord"])
-    ComparisonFactory(code="OTHER").coordinators.add(users["coord2"])
-    device = DeviceFactory(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
+    ComparisonFactory.create(code="OTHER").coordinators.add(users["coord2"])
+    device = DeviceFactory.create(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
     measurement_points_generate(
         comparison=comparison, devices=[device], axes=["X"], frequencies_hz=[10],
         benches=["linear"],
     )  # fmt: skip
     for lab, code in ((lab_a, "W11"), (lab_b, "W22")):
-        part = ParticipantFactory(comparison=comparison, laboratory=lab, code=code)
-        sub = SubmissionFactory(participant=part, version=1, status="accepted")
+        part = ParticipantFactory.create(comparison=comparison, laboratory=lab, code=code)
+        sub = SubmissionFactory.create(participant=part, version=1, status="accepted")
         for p in comparison.measurement_points.all():
-            ResultFactory(submission=sub, measurement_point=p, value=REPORTED,
+            ResultFactory.create(submission=sub, measurement_point=p, value=REPORTED,
                           expanded_uncertainty=REPORTED_U, coverage_factor=2.0)  # fmt: skip
     return users
 

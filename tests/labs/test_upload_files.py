@@ -27,13 +27,13 @@ CURVILINEAR = ("tangential", "radial")
 @pytest.fixture
 def grid():
     """An open comparison: 10 devices × 3 axes × 40 frequencies × 3 bench directions."""
-    comparison = ComparisonFactory(status="open")
-    devices = [DeviceFactory(comparison=comparison, name=f"MEMS {i}") for i in range(1, 11)]
+    comparison = ComparisonFactory.create(status="open")
+    devices = [DeviceFactory.create(comparison=comparison, name=f"MEMS {i}") for i in range(1, 11)]
     measurement_points_generate(
         comparison=comparison, devices=devices, axes=["X", "Y", "Z"],
         frequencies_hz=FREQUENCIES, benches=["linear", "curvilinear"],
     )  # fmt: skip
-    return ParticipantFactory(comparison=comparison), UserFactory()
+    return ParticipantFactory.create(comparison=comparison), UserFactory.create()
 
 
 def records() -> list[dict[str, object]]:
@@ -243,7 +243,7 @@ def test_json_and_file_store_identical_rows(grid) -> None:
         row["coverage_factor"] = ["2", "2.5", "1.96"][i % 3]
         if i % 4 == 1:
             row["expanded_uncertainty"] = "1.5%"
-    other = ParticipantFactory(comparison=participant.comparison)
+    other = ParticipantFactory.create(comparison=participant.comparison)
     json_rows = [
         {k: float(v) if k in ("frequency_hz", "sensitivity", "coverage_factor") else v
          for k, v in row.items()}
@@ -266,8 +266,8 @@ def test_json_and_file_store_identical_rows(grid) -> None:
 @pytest.fixture
 def big_grid():
     """An open comparison with exactly 100,000 points: 25 devices × 2 axes × 2000 frequencies."""
-    comparison = ComparisonFactory(status="open")
-    devices = [DeviceFactory(comparison=comparison, name=f"MEMS {i}") for i in range(1, 26)]
+    comparison = ComparisonFactory.create(status="open")
+    devices = [DeviceFactory.create(comparison=comparison, name=f"MEMS {i}") for i in range(1, 26)]
     frequencies = [1 + 0.5 * i for i in range(2000)]
     measurement_points_generate(
         comparison=comparison, devices=devices, axes=["X", "Y"], frequencies_hz=frequencies,
@@ -281,7 +281,7 @@ def big_grid():
     ]
     data = ("device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\n"
             + "\n".join(lines)).encode()  # fmt: skip
-    return ParticipantFactory(comparison=comparison), UserFactory(), data
+    return ParticipantFactory.create(comparison=comparison), UserFactory.create(), data
 
 
 def test_100k_row_csv_is_stored_completely(big_grid) -> None:

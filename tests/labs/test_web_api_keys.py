@@ -15,7 +15,7 @@ pytestmark = pytest.mark.django_db
 
 @pytest.fixture
 def manager():
-    return MembershipFactory(role=Membership.Role.MANAGER)
+    return MembershipFactory.create(role=Membership.Role.MANAGER)
 
 
 @pytest.fixture
@@ -59,7 +59,9 @@ def test_revoke_asks_then_revokes(client, manager, keys_url):
 
 def test_other_labs_manager_cannot_touch_the_keys(client, manager):
     key_obj, key = api_key_create(laboratory=manager.laboratory, name="mine", user=None)
-    other = MembershipFactory(laboratory=LaboratoryFactory(), role=Membership.Role.MANAGER)
+    other = MembershipFactory.create(
+        laboratory=LaboratoryFactory.create(), role=Membership.Role.MANAGER
+    )
     client.force_login(other.user)
     lab_pk = manager.laboratory_id
     revoke = reverse("labs:api_key_revoke", args=[lab_pk, key_obj.prefix])
@@ -73,7 +75,7 @@ def test_other_labs_manager_cannot_touch_the_keys(client, manager):
 
 def test_staff_cannot_create_or_revoke(client, manager):
     key_obj, key = api_key_create(laboratory=manager.laboratory, name="mine", user=None)
-    staff = MembershipFactory(laboratory=manager.laboratory)
+    staff = MembershipFactory.create(laboratory=manager.laboratory)
     client.force_login(staff.user)
     lab_pk = manager.laboratory_id
     assert client.post(reverse("labs:api_keys", args=[lab_pk]), {"name": "x"}).status_code == 404

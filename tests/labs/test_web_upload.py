@@ -20,12 +20,12 @@ HEADER = "device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\r\n"
 
 @pytest.fixture
 def participant():
-    return ParticipantFactory(comparison=open_comparison("CMP-U"), code="L66")
+    return ParticipantFactory.create(comparison=open_comparison("CMP-U"), code="L66")
 
 
 @pytest.fixture
 def staff(client, participant):
-    user = MembershipFactory(laboratory=participant.laboratory).user
+    user = MembershipFactory.create(laboratory=participant.laboratory).user
     client.force_login(user)
     return user
 

@@ -45,25 +45,28 @@ class World:
 @pytest.fixture
 def world():
     w = World()
-    lab_a, lab_b = LaboratoryFactory(name="Alpha Raw Lab"), LaboratoryFactory(name="Bravo")
+    lab_a, lab_b = (
+        LaboratoryFactory.create(name="Alpha Raw Lab"),
+        LaboratoryFactory.create(name="Bravo"),
+    )
     w.users = {
-        "staff_a": MembershipFactory(laboratory=lab_a, role=Membership.Role.STAFF).user,
-        "staff_b": MembershipFactory(laboratory=lab_b).user,
-        "coord": UserFactory(username="coord-raw"),
+        "staff_a": MembershipFactory.create(laboratory=lab_a, role=Membership.Role.STAFF).user,
+        "staff_b": MembershipFactory.create(laboratory=lab_b).user,
+        "coord": UserFactory.create(username="coord-raw"),
     }
-    comparison = ComparisonFactory(code=CODE, status="closed", protocol="custom")
+    comparison = ComparisonFactory.create(code=CODE, status="closed", protocol="custom")
     comparison.coordinators.add(w.users["coord"])
-    device = DeviceFactory(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
+    device = DeviceFactory.create(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
     points = measurement_points_generate(
         comparison=comparison, devices=[device], axes=["X", "Y"], frequencies_hz=[10],
         benches=["linear", "curvilinear"],
     )  # fmt: skip
-    w.part_a = ParticipantFactory(comparison=comparison, laboratory=lab_a, code="R17")
-    w.part_b = ParticipantFactory(comparison=comparison, laboratory=lab_b, code="R42")
+    w.part_a = ParticipantFactory.create(comparison=comparison, laboratory=lab_a, code="R17")
+    w.part_b = ParticipantFactory.create(comparison=comparison, laboratory=lab_b, code="R42")
     for part in (w.part_a, w.part_b):
-        sub = SubmissionFactory(participant=part, version=1, status="accepted")
+        sub = SubmissionFactory.create(participant=part, version=1, status="accepted")
         for p in points:
-            ResultFactory(
+            ResultFactory.create(
                 submission=sub, measurement_point=p, value=REPORTED,
                 expanded_uncertainty=REPORTED_U, coverage_factor=2.0, unit="D/(m/s^2)",
             )  # fmt: skip
