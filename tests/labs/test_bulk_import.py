@@ -409,7 +409,8 @@ def test_seen_keys_against_a_dict():
 
     from labs.bulk_import import _Seen
 
-    rng, seen, first, row = np.random.default_rng(0), _Seen(), {}, 2
+    first: dict[int, int] = {}
+    rng, seen, row = np.random.default_rng(0), _Seen(), 2
     for _ in range(30):
         keys, rows = rng.integers(0, 3000, 500), np.arange(row, row + 500)
         row += 500

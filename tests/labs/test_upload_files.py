@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import zipfile
+from collections.abc import Mapping, Sequence
 
 import openpyxl
 import pytest
@@ -36,7 +37,7 @@ def grid():
     return ParticipantFactory.create(comparison=comparison), UserFactory.create()
 
 
-def records() -> list[dict[str, object]]:
+def records() -> list[dict[str, str]]:
     """A complete result set for :func:`grid`, values as text."""
     out = []
     for i, (bench, direction) in enumerate(
@@ -51,7 +52,7 @@ def records() -> list[dict[str, object]]:
     return out
 
 
-def csv_file(rows: list[dict[str, object]], *, sep: str = ",", bom: bool = False) -> bytes:
+def csv_file(rows: Sequence[Mapping[str, object]], *, sep: str = ",", bom: bool = False) -> bytes:
     names = list(dict.fromkeys(name for row in rows for name in row))
     buffer = io.StringIO()
     writer = csv.writer(buffer, delimiter=sep, lineterminator="\r\n")
@@ -60,7 +61,7 @@ def csv_file(rows: list[dict[str, object]], *, sep: str = ",", bom: bool = False
     return ("\ufeff" if bom else "").encode() + buffer.getvalue().encode()
 
 
-def xlsx_file(rows: list[dict[str, object]], *, formula: str | None = None) -> bytes:
+def xlsx_file(rows: list[dict[str, str]], *, formula: str | None = None) -> bytes:
     """A workbook as a spreadsheet program writes it: numbers as numbers."""
     book = openpyxl.Workbook()
     sheet = book.active
@@ -83,7 +84,9 @@ def upload(grid, data: bytes, filename: str = "results.csv", submit: bool = True
     )
 
 
-def refused(grid, data: bytes, filename: str = "results.csv") -> list[tuple[object, ...]]:
+def refused(
+    grid, data: bytes, filename: str = "results.csv"
+) -> list[tuple[int | None, str | None, str]]:
     with pytest.raises(ValidationFailed) as caught:
         upload(grid, data, filename)
     assert Submission.objects.count() == 0 and Result.objects.count() == 0
@@ -93,7 +96,7 @@ def refused(grid, data: bytes, filename: str = "results.csv") -> list[tuple[obje
 # --- good files -----------------------------------------------------------------------------
 
 
-def stored(submission: Submission) -> dict[tuple[object, ...], tuple[float, float, float]]:
+def stored(submission: Submission) -> dict[tuple[object, ...], tuple[float, ...]]:
     values = submission.results.values_list(
         "measurement_point__device__name", "measurement_point__axis",
         "measurement_point__frequency_hz", "measurement_point__bench",

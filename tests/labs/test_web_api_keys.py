@@ -29,7 +29,9 @@ def test_create_shows_the_key_once_and_it_authenticates(client, manager, keys_ur
     assert response.status_code == 200
     assert "no-cache" in response["Cache-Control"] or "no-store" in response["Cache-Control"]
     body = visible(response)
-    key = re.search(r'id="api-key" class="[^"]*" type="text" value="([^"]+)"', body).group(1)
+    shown = re.search(r'id="api-key" class="[^"]*" type="text" value="([^"]+)"', body)
+    assert shown is not None, body
+    key = shown.group(1)
     assert LabAPIKey.objects.is_valid(key)
     key_obj = LabAPIKey.objects.get_from_key(key)
     assert key_obj.laboratory == manager.laboratory and key_obj.created_by == manager.user

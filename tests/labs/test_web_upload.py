@@ -67,7 +67,8 @@ def test_good_xlsx_is_submitted(client, staff, participant):
     assert response.status_code == 302
     submission = Submission.objects.get(participant=participant)
     assert submission.status == "submitted"
-    assert submission.results.first().expanded_uncertainty == pytest.approx(419 * 0.015)
+    result = submission.results.first()
+    assert result is not None and result.expanded_uncertainty == pytest.approx(419 * 0.015)
 
 
 def test_bad_csv_gives_a_row_report_and_stores_nothing(client, staff):

@@ -11,11 +11,13 @@ from __future__ import annotations
 import datetime as dt
 from dataclasses import dataclass, field
 
+from django.contrib.auth.models import User
 from django.utils import timezone
 from rest_framework.test import APIClient
 
-from labs.models import Membership
+from labs.models import Laboratory, Membership, Participant
 from labs.services import api_key_create, api_key_revoke, submission_from_records
+from proficiency.models import Comparison
 from proficiency.services import measurement_points_generate
 from tests.factories import (
     ComparisonFactory,
@@ -79,8 +81,17 @@ def open_comparison(code: str, coordinator=None, **kwargs):
 
 @dataclass
 class World:
-    users: dict = field(default_factory=dict)
-    keys: dict = field(default_factory=dict)
+    users: dict[str, User] = field(default_factory=dict)
+    keys: dict[str, str] = field(default_factory=dict)
+    # set by build_world
+    lab_a: Laboratory = field(init=False)
+    lab_b: Laboratory = field(init=False)
+    cmp: Comparison = field(init=False)
+    other: Comparison = field(init=False)
+    shared: Comparison = field(init=False)
+    part_a: Participant = field(init=False)
+    shared_a: Participant = field(init=False)
+    shared_b: Participant = field(init=False)
 
     def client(self, persona: str) -> APIClient:
         client = APIClient()

@@ -5,10 +5,11 @@ from __future__ import annotations
 import math
 
 import pytest
+from django.contrib.auth.models import User
 from django.core.files.uploadedfile import SimpleUploadedFile
 from rest_framework.test import APIClient
 
-from labs.models import Membership, RawFile, RawRecomputation, RawRecord
+from labs.models import Membership, Participant, RawFile, RawRecomputation, RawRecord
 from labs.services import api_key_create
 from proficiency.services import measurement_points_generate
 from tests.factories import (
@@ -33,6 +34,11 @@ CURV_POINT = {**LINEAR_POINT, "bench": "curvilinear", "direction": "tangential"}
 
 
 class World:
+    users: dict[str, User]
+    part_a: Participant
+    part_b: Participant
+    key_a: str
+
     def client(self, persona: str) -> APIClient:
         client = APIClient()
         if persona == "key_a":
@@ -100,6 +106,7 @@ def test_upload_recomputes_the_known_truth_and_en(world, django_capture_on_commi
     assert row.fs_hz == pytest.approx(1663.7, abs=0.01)
     assert row.reported_value == REPORTED and row.reported_expanded_uncertainty == REPORTED_U
     # En by hand from the stored values
+    assert row.sensitivity is not None and row.expanded_uncertainty is not None
     expected = (REPORTED - row.sensitivity) / math.sqrt(REPORTED_U**2 + row.expanded_uncertainty**2)
     assert row.en == pytest.approx(expected, rel=1e-12)
     assert row.software_version and row.parameters["data_sha256"] == row.record.data_file.sha256
