@@ -173,6 +173,7 @@ def test_check_request_does_not_reveal_the_deviation(personas, demo):
                                 "Outlier Metrology Services")  # fmt: skip
     result = p.submissions.get().results.select_related("measurement_point__device").filter(
         measurement_point__device__name="MEMS 2").first()  # fmt: skip
+    assert result is not None
     response = personas["coordinator"].post(
         f"/api/v1/comparisons/{CODE}/check-requests/", {"result": result.pk}, format="json"
     )
