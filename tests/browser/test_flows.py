@@ -19,7 +19,7 @@ import re
 
 import pytest
 from django.utils import timezone
-from playwright.sync_api import Page, expect
+from playwright.sync_api import FilePayload, Page, expect
 from pypdf import PdfReader
 
 from analysis.models import AnalysisRun, Report, Score
@@ -59,6 +59,7 @@ def _lab_member(comparison: Comparison, lab_name: str, username: str) -> Partici
 
 def _sign_in(page: Page, base: str, username: str, shots, shot: str | None = None) -> None:
     response = page.goto(f"{base}/accounts/login/")
+    assert response is not None
     # The pages run under the site's CSP, so a violation would show as a console error.
     assert "script-src 'self'" in response.headers["content-security-policy"]
     expect(page.get_by_role("heading", name="Sign in")).to_be_visible()
@@ -80,7 +81,7 @@ def _csv(rows: list[dict[str, str]]) -> bytes:
 
 def _upload(page: Page, name: str, data: bytes) -> None:
     page.locator("input[type=file]").set_input_files(
-        files=[{"name": name, "mimeType": "text/csv", "buffer": data}]
+        files=[FilePayload(name=name, mimeType="text/csv", buffer=data)]
     )
     page.get_by_role("button", name="Upload and submit").click()
 
