@@ -278,6 +278,9 @@ def run_analysis(
         n = comparison.measurement_points.count() * comparison.participants.count()
         assert Score.objects.filter(run=run).count() == n
         chunks = list(run.chunks.order_by("index").values_list("seconds", "peak_rss_kb"))
+        chunk_rss_kb = [kb for _, kb in chunks if kb is not None]
+        # the run's last step and every stored chunk record their peak RSS
+        assert run.peak_rss_kb is not None and len(chunk_rss_kb) == len(chunks)
         if not keep_run:
             AnalysisRun.objects.filter(pk=run.pk).delete()  # keep the score table small
         with connection.cursor() as cur:  # and every run starts from the same table state
@@ -287,7 +290,7 @@ def run_analysis(
                 "run_id": run.pk, "worker_cpu_s": cpu1 - cpu0, "db_cpu_s": db_cpu.seconds,
                 "worker_hwm_mb": hwm / 1024,
                 "chunks": len(chunks), "chunk_s": sum(c[0] for c in chunks),
-                "chunk_rss_mb": [c[1] // 1024 for c in chunks]}  # fmt: skip
+                "chunk_rss_mb": [kb // 1024 for kb in chunk_rss_kb]}  # fmt: skip
     finally:
         for w in workers:
             w.terminate()

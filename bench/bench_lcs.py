@@ -30,7 +30,7 @@ from analysis.core.assigned import EXACT_MAX, largest_consistent_subset
 from analysis.core.groups import Groups
 
 
-def _median_time(fn, repeats: int) -> tuple[float, object]:  # type: ignore[no-untyped-def]
+def _median_time(fn, repeats: int) -> tuple[float, object]:
     times, out = [], None
     for _ in range(repeats):
         t = time.perf_counter()

@@ -80,6 +80,7 @@ def measure(k: int, profile: str | None) -> None:
         report_issue_batch(run_id=run_id, participant_ids=rest[i : i + 25])
     if prof:
         prof.disable()
+        assert profile  # prof exists only when a path was given
         prof.dump_stats(profile)
     issued = (time.process_time() - started) / len(rest)
     run = AnalysisRun.objects.select_related("comparison").get(pk=run_id)

@@ -324,7 +324,7 @@ def check_determinism(comparison_id: int) -> None:
     from analysis.reports.render import render_report
 
     report = Report.objects.filter(comparison_id=comparison_id, kind="participant").first()
-    assert report is not None
+    assert report is not None and report.run is not None and report.participant is not None
     data = report_data(run=report.run, participant=report.participant, edition=1)
     same = hashlib.sha256(render_report(data)).hexdigest() == report.sha256
     print(f"    worker PDF == in-process PDF for {report.participant.code}: {same}")

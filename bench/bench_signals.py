@@ -42,11 +42,22 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from analysis.core.signals import paper
+from analysis.core.signals.measure import Method
+from analysis.core.signals.results import AxisResult
 from analysis.core.signals.sensitivity import record_sensitivity
 from analysis.core.signals.synthetic import Imperfections, linear_record
 
 TRUTH = (420.0, 418.0, 425.0)
 FS_TRUE = 1663.7
+METHODS: tuple[Method, ...] = ("sine-fit", "paper")
+
+
+def _relative_error(a: AxisResult) -> float:
+    """S / S_true - 1 of an axis (every axis of the bench's records has a sensitivity)."""
+    assert a.sensitivity is not None, (a.axis, a.status)
+    return a.sensitivity / TRUTH["xyz".index(a.axis)] - 1
+
+
 TARGET_S = 0.020
 
 
@@ -110,21 +121,19 @@ def _pipeline(args: argparse.Namespace) -> int:
         + "".join(f"{'S_' + a + ' err':>13}" for a in "xyz")
     )
     for name, res in (("sine-fit", fit), ("paper", study)):
-        errs = [a.sensitivity / TRUTH["xyz".index(a.axis)] - 1 for a in res.axes]
+        errs = [_relative_error(a) for a in res.axes]
         print(
             f"{name:10}{res.fs_hz:14.5f}{res.fs_hz - FS_TRUE:13.5f}"
             + "".join(f"{e * 100:12.4f}%" for e in errs)
         )
     clean = linear_record(TRUTH, fs=FS_TRUE, tilt=30.0, rotation=45.0)
-    fs_clean = {
-        m: record_sensitivity(clean, None, m).fs_hz - FS_TRUE for m in ("sine-fit", "paper")
-    }
+    fs_clean = {m: record_sensitivity(clean, None, m).fs_hz - FS_TRUE for m in METHODS}
     print(
         f"same record without imperfections, fs error: sine-fit {fs_clean['sine-fit']:.2e} Hz, "
         f"paper {fs_clean['paper']:+.2f} Hz"
     )
-    worst_fit = max(abs(a.sensitivity / TRUTH["xyz".index(a.axis)] - 1) for a in fit.axes)
-    worst_paper = max(abs(a.sensitivity / TRUTH["xyz".index(a.axis)] - 1) for a in study.axes)
+    worst_fit = max(abs(_relative_error(a)) for a in fit.axes)
+    worst_paper = max(abs(_relative_error(a)) for a in study.axes)
     print(
         f"\nworst sensitivity error: sine-fit {worst_fit * 100:.4f} %, "
         f"paper {worst_paper * 100:.4f} % ({worst_paper / worst_fit:.0f}× larger)"
@@ -136,7 +145,7 @@ def _pipeline(args: argparse.Namespace) -> int:
     return 0 if ok and worst_fit < worst_paper else 1
 
 
-def _task_world(code: str):  # type: ignore[no-untyped-def]
+def _task_world(code: str):
     """A comparison with one linear point and one lab that reported 420 ± 8 there."""
     from labs.models import Laboratory, Participant, Result, Submission
     from proficiency.models import Comparison, Device, MeasurementPoint
@@ -154,7 +163,7 @@ def _task_world(code: str):  # type: ignore[no-untyped-def]
     return part, point
 
 
-def _start_workers(n: int) -> list:  # type: ignore[type-arg]
+def _start_workers(n: int) -> list:
     """``n`` solo worker processes with this process' environment (database, broker, media)."""
     import subprocess
     import uuid
@@ -207,7 +216,7 @@ def task_path(n: int, seconds: float, database_url: str, args: argparse.Namespac
 
 
 def _task_loop(n: int, seconds: float, database_url: str, args: argparse.Namespace,
-               procs: list) -> None:  # type: ignore[type-arg]  # fmt: skip
+               procs: list) -> None:  # fmt: skip
     import numpy as np
 
     from labs.models import RawRecomputation
@@ -239,9 +248,12 @@ def _task_loop(n: int, seconds: float, database_url: str, args: argparse.Namespa
             time.sleep(0.2)
         total_workers = time.perf_counter() - t_first
     done = rows.filter(status="succeeded")
-    errs = np.array([s / TRUTH[0] - 1 for s in done.values_list("sensitivity", flat=True)])
-    task_s = [(r.finished_at - r.started_at).total_seconds()
-              for r in done.only("started_at", "finished_at")]  # fmt: skip
+    # a succeeded recomputation has its sensitivity and both times
+    sensitivities = list(done.values_list("sensitivity", flat=True))
+    errs = np.array([s / TRUTH[0] - 1 for s in sensitivities if s is not None])
+    times = [(r.started_at, r.finished_at) for r in done.only("started_at", "finished_at")]
+    task_s = [(end - start).total_seconds() for start, end in times if start and end]
+    assert len(errs) == len(sensitivities) and len(task_s) == len(times)
     total = sum(wall)
     print(f"  succeeded {done.count()} / {rows.count()}; max |S_x error| "
           f"{np.max(np.abs(errs)) * 100:.4f} %")  # fmt: skip

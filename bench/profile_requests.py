@@ -25,6 +25,7 @@ import pstats
 import random
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 API = "/api/v1"
@@ -93,7 +94,12 @@ def main() -> None:
             "CONTENT_LENGTH": str(len(data)), "CONTENT_TYPE": "application/json",
         }  # fmt: skip
         status: list[str] = []
-        b"".join(app(environ, lambda s, h, e=None: status.append(s)))
+
+        def start_response(s: str, h: object, e: object = None) -> Callable[[bytes], object]:
+            status.append(s)
+            return lambda data: None  # PEP 3333's write(): the app returns its body instead
+
+        b"".join(app(environ, start_response))
         if not status[0].startswith(("200", "201")):
             sys.exit(f"{name}: {status[0]} (a key throttled or revoked? fresh fixture?)")
 
@@ -106,7 +112,11 @@ def main() -> None:
             request(name, i)
         cpu = (time.process_time() - start) / n * 1000
         db_end = backend_cpu()
-        db = "" if db_start is None else f", database {(db_end - db_start) / n * 1e3:5.2f} ms"
+        db = (
+            ""
+            if db_start is None or db_end is None
+            else f", database {(db_end - db_start) / n * 1e3:5.2f} ms"
+        )
         print(f"{name:12s} {cpu:6.2f} ms CPU per request{db} ({n} requests)", flush=True)
     if args.sql:
         from django.db import connection

@@ -52,21 +52,21 @@ def isolated_media_root(request, tmp_path):
 def comparison(db):
     from tests.factories import ComparisonFactory
 
-    return ComparisonFactory()
+    return ComparisonFactory.create()
 
 
 @pytest.fixture
 def device(comparison):
     from tests.factories import DeviceFactory
 
-    return DeviceFactory(comparison=comparison)
+    return DeviceFactory.create(comparison=comparison)
 
 
 @pytest.fixture
 def point(device):
     from tests.factories import MeasurementPointFactory
 
-    return MeasurementPointFactory(device=device)
+    return MeasurementPointFactory.create(device=device)
 
 
 @pytest.fixture

@@ -2,12 +2,13 @@
 
 import factory
 from django.contrib.auth import get_user_model
+from django.contrib.auth.models import User
 
 from labs.models import Laboratory, Membership, Participant, Result, Submission
 from proficiency.models import Comparison, Device, MeasurementPoint
 
 
-class UserFactory(factory.django.DjangoModelFactory):
+class UserFactory(factory.django.DjangoModelFactory[User]):
     class Meta:
         model = get_user_model()
         django_get_or_create = ("username",)
@@ -17,7 +18,7 @@ class UserFactory(factory.django.DjangoModelFactory):
     password = factory.django.Password("correct horse battery staple")
 
 
-class LaboratoryFactory(factory.django.DjangoModelFactory):
+class LaboratoryFactory(factory.django.DjangoModelFactory[Laboratory]):
     class Meta:
         model = Laboratory
 
@@ -25,7 +26,7 @@ class LaboratoryFactory(factory.django.DjangoModelFactory):
     country = "IT"
 
 
-class MembershipFactory(factory.django.DjangoModelFactory):
+class MembershipFactory(factory.django.DjangoModelFactory[Membership]):
     class Meta:
         model = Membership
 
@@ -33,7 +34,7 @@ class MembershipFactory(factory.django.DjangoModelFactory):
     laboratory = factory.SubFactory(LaboratoryFactory)
 
 
-class ComparisonFactory(factory.django.DjangoModelFactory):
+class ComparisonFactory(factory.django.DjangoModelFactory[Comparison]):
     class Meta:
         model = Comparison
 
@@ -41,7 +42,7 @@ class ComparisonFactory(factory.django.DjangoModelFactory):
     title = factory.LazyAttribute(lambda c: f"Comparison {c.code}")
 
 
-class DeviceFactory(factory.django.DjangoModelFactory):
+class DeviceFactory(factory.django.DjangoModelFactory[Device]):
     class Meta:
         model = Device
 
@@ -52,7 +53,7 @@ class DeviceFactory(factory.django.DjangoModelFactory):
     tolerance = 1.0
 
 
-class MeasurementPointFactory(factory.django.DjangoModelFactory):
+class MeasurementPointFactory(factory.django.DjangoModelFactory[MeasurementPoint]):
     class Meta:
         model = MeasurementPoint
 
@@ -64,7 +65,7 @@ class MeasurementPointFactory(factory.django.DjangoModelFactory):
     direction = "vertical"
 
 
-class ParticipantFactory(factory.django.DjangoModelFactory):
+class ParticipantFactory(factory.django.DjangoModelFactory[Participant]):
     class Meta:
         model = Participant
 
@@ -73,7 +74,7 @@ class ParticipantFactory(factory.django.DjangoModelFactory):
     code = factory.Sequence(lambda n: f"L{n % 100:02d}")
 
 
-class SubmissionFactory(factory.django.DjangoModelFactory):
+class SubmissionFactory(factory.django.DjangoModelFactory[Submission]):
     class Meta:
         model = Submission
 
@@ -81,7 +82,7 @@ class SubmissionFactory(factory.django.DjangoModelFactory):
     version = 1
 
 
-class ResultFactory(factory.django.DjangoModelFactory):
+class ResultFactory(factory.django.DjangoModelFactory[Result]):
     class Meta:
         model = Result
 

@@ -47,7 +47,7 @@ def ranges(name: str) -> list[Requirement]:
 
 
 def pins(name: str) -> dict[str, Version]:
-    found = {}
+    found: dict[str, Version] = {}
     for line in (ROOT / name).read_text().splitlines():
         match = PIN.match(line)
         if match:
@@ -97,6 +97,7 @@ def test_no_torch(lock_file):
 
 
 def test_pin_parser():
-    assert PIN.match("rl-accel==0.9.1 \\").groups() == ("rl-accel", "0.9.1")
+    match = PIN.match("rl-accel==0.9.1 \\")
+    assert match is not None and match.groups() == ("rl-accel", "0.9.1")
     assert PIN.match("    --hash=sha256:00") is None
     assert PIN.match("    # via -r requirements.txt") is None

@@ -77,7 +77,7 @@ def add_raw_records(world: World, n: int) -> set[int]:
 def add_participants(world: World, n: int) -> set[str]:
     """``n`` more participants in comparison 1, each with a submitted version 1."""
     parts = Participant.objects.bulk_create(
-        Participant(comparison=world.c1, laboratory=LaboratoryFactory(), code=f"P{i:03d}")
+        Participant(comparison=world.c1, laboratory=LaboratoryFactory.create(), code=f"P{i:03d}")
         for i in range(n)
     )
     Submission.objects.bulk_create(
@@ -128,7 +128,7 @@ def add_points(world: World, n: int) -> set[int]:
 def add_comparisons(world: World, n: int) -> set[str]:
     """``n`` more comparisons lab A takes part in."""
     for _ in range(n):
-        c = ComparisonFactory(status=ComparisonStatus.OPEN)
+        c = ComparisonFactory.create(status=ComparisonStatus.OPEN)
         Participant.objects.create(comparison=c, laboratory=world.lab_a, code=LAB_A_CODE)
     return set(
         Comparison.objects.filter(participants__laboratory=world.lab_a).values_list(

@@ -87,12 +87,12 @@ def grow(world: World, capture: Callable[..., Any]) -> None:
     device = world.point.device
     base = MeasurementPoint.objects.filter(comparison=c1).count()
     for i in range(2):
-        MeasurementPointFactory(device=device, frequency_hz=100.0 + 10 * (base + i))
+        MeasurementPointFactory.create(device=device, frequency_hz=100.0 + 10 * (base + i))
     points = list(MeasurementPoint.objects.filter(comparison=c1).order_by("pk"))
     n_parts = Participant.objects.filter(comparison=c1).count()
     added = []
     for i in range(2):
-        lab = LaboratoryFactory(name=f"Growth lab {n_parts + i}")
+        lab = LaboratoryFactory.create(name=f"Growth lab {n_parts + i}")
         part = Participant.objects.create(comparison=c1, laboratory=lab, code=f"G{n_parts + i}")
         _submission(part, 1, Submission.Status.ACCEPTED, 123.0 + 0.1 * i, points)
         added.append(part)

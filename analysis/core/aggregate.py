@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import SupportsFloat
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -66,7 +67,7 @@ def aggregate(x: ArrayLike, u: ArrayLike, groups: Groups, k: float = 2.0) -> Agg
     )
 
 
-def check_coverage_factor(k: float) -> float:
+def check_coverage_factor(k: SupportsFloat) -> float:
     """Check a coverage factor k (finite, > 0) and return it as a float."""
     try:
         kf = math.nan if isinstance(k, str | bytes | bool) else float(k)

@@ -39,8 +39,8 @@ def user(name):
 
 @pytest.fixture
 def personas(demo):
-    other = UserFactory(username="other-coordinator")
-    ComparisonFactory(code="OTHER-01").coordinators.add(other)
+    other = UserFactory.create(username="other-coordinator")
+    ComparisonFactory.create(code="OTHER-01").coordinators.add(other)
     lab_a = Laboratory.objects.get(name="Alpine Vibration Metrology")  # lab03
     _, key_a = api_key_create(laboratory=lab_a, name="software", user=None)
     return {
@@ -173,6 +173,7 @@ def test_check_request_does_not_reveal_the_deviation(personas, demo):
                                 "Outlier Metrology Services")  # fmt: skip
     result = p.submissions.get().results.select_related("measurement_point__device").filter(
         measurement_point__device__name="MEMS 2").first()  # fmt: skip
+    assert result is not None
     response = personas["coordinator"].post(
         f"/api/v1/comparisons/{CODE}/check-requests/", {"result": result.pk}, format="json"
     )

@@ -1,6 +1,7 @@
 """analysis.charts: plain data in, deterministic inline SVG out (no database)."""
 
 import xml.etree.ElementTree as ET
+from typing import Any
 
 from analysis import charts
 
@@ -13,7 +14,7 @@ def parse(svg: str) -> ET.Element:
 
 
 def test_point_chart_has_labs_axis_labels_and_is_deterministic():
-    kwargs = dict(assigned_value=418.0, assigned_expanded_uncertainty=4.8,
+    kwargs: dict[str, Any] = dict(assigned_value=418.0, assigned_expanded_uncertainty=4.8,
                   title="MEMS 1 · X · 5 Hz", unit="D/(m/s^2)", highlight="L07")  # fmt: skip
     svg = charts.point_chart(LABS, [420.0, 421.5, 430.2], [8.0, 8.0, 9.0], **kwargs)
     parse(svg)

@@ -114,7 +114,7 @@ def started(comparison, settings, chunk_results, monkeypatch):
     assert analysis_run_execute(run_id=run.pk) == "running"
     assert sent == [(run.pk, AnalysisRun.objects.get(pk=run.pk).chunks_total)]
     run = AnalysisRun.objects.get(pk=run.pk)
-    run.finish_sent = finish_sent
+    run.finish_sent = finish_sent  # type: ignore[attr-defined]  # the test's record, on the run
     return run
 
 
@@ -245,7 +245,9 @@ def test_deleting_a_result_through_the_orm_deletes_its_scores(demo, settings):
     from labs.models import Result
 
     run = run_with(demo, settings, 300)
-    victim = Score.objects.filter(run=run).order_by("pk").first().result
+    first = Score.objects.filter(run=run).order_by("pk").first()
+    assert first is not None
+    victim = first.result
     Result.objects.filter(pk=victim.pk).delete()
     assert Score.objects.filter(run=run).count() == 890
 

@@ -25,7 +25,7 @@ def client(user=None, key=None):
 def coordinator():
     group = Group.objects.create(name="coordinators")
     group.permissions.add(Permission.objects.get(codename="add_comparison"))
-    user = UserFactory(username="carla")
+    user = UserFactory.create(username="carla")
     user.groups.add(group)
     return user
 
@@ -57,7 +57,10 @@ def test_round_end_to_end(coordinator):
     )
     grid = coord.post(base + "measurands/generate/", {"template": "linear"}, format="json")
     assert grid.json() == {"created": 9, "measurement_points": 9}
-    lab_a, lab_b = LaboratoryFactory(name="Lab Alpha"), LaboratoryFactory(name="Lab Beta")
+    lab_a, lab_b = (
+        LaboratoryFactory.create(name="Lab Alpha"),
+        LaboratoryFactory.create(name="Lab Beta"),
+    )
     invited = coord.post(base + "participants/", {"laboratories": ["Lab Alpha", str(lab_b.pk)]},
                          format="json").json()["participants"]  # fmt: skip
     codes = {p["laboratory"]: p["code"] for p in invited}
@@ -100,7 +103,7 @@ def test_round_end_to_end(coordinator):
 
 
 def test_setup_endpoints_are_for_coordinators(coordinator):
-    outsider = UserFactory(username="olga")
+    outsider = UserFactory.create(username="olga")
     assert client(outsider).post("/api/v1/comparisons/", {"code": "X-1", "title": "x"},
                                  format="json").status_code == 403  # fmt: skip
     coord = client(coordinator)

@@ -38,6 +38,7 @@ def varied_csv(path: Path) -> Path:
     given coverage factors, text that a spreadsheet would execute, non-ASCII names."""
     rng = np.random.default_rng(16)
     labs = ["A", "B", "C", "D", "E", "-minus", "Labö", "=1+1"]
+    points: list[tuple[str, str, float, str, str]]
     points = [(d, a, f, "linear", "vertical") for d in ("MEMS 1", "MEMS 2")
               for a in "XYZ" for f in (10, 160)]  # fmt: skip
     points += [("MEMS 1", "X", 1.5, "curvilinear", "tangential"),

@@ -6,9 +6,11 @@ is the Q method's s*."""
 import json
 from io import StringIO
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pytest
+from django import forms
 from django.contrib.auth import get_user_model
 from django.core.management import call_command
 from django.core.management.base import CommandError
@@ -100,7 +102,10 @@ def test_labels_of_the_methods():
     assert method_label("median_made") == "Median with MADe"
     assert method_label("median_niqr") == "Median with nIQR"
     assert method_label("q_hampel") == "Q/Hampel (ISO 13528 Q method and Hampel estimator)"
-    choices = dict(PointOverrideForm().fields["assigned_value_method"].choices)
+    field = PointOverrideForm().fields["assigned_value_method"]
+    assert isinstance(field, forms.ChoiceField)
+    # a ChoiceField normalises its choices to a list of (value, label) pairs
+    choices = dict(cast(list[tuple[str, str]], field.choices))
     assert {"median", "median_niqr", "q_hampel"} <= choices.keys()
 
 

@@ -37,7 +37,7 @@ def test_run_succeeds_and_matches_the_offline_tool(demo, tmp_path):
     run = analysis_run_start(comparison=demo, user=None)  # eager: runs on commit
     run.refresh_from_db()
     assert (run.status, run.progress, run.stage, run.error) == ("succeeded", 100, "done", "")
-    assert run.started_at <= run.finished_at
+    assert run.started_at and run.finished_at and run.started_at <= run.finished_at
     assert run.parameters["assigned_value_method"] == "nominal"
     demo.refresh_from_db()
     assert demo.status == "analysed"
@@ -158,7 +158,7 @@ def test_start_refused_unless_closed_or_analysed(demo, status):
 
 
 def test_enqueued_only_after_commit(demo, monkeypatch):
-    sent = []
+    sent: list[object] = []
     monkeypatch.setattr("analysis.tasks.analysis_run_task.delay", sent.append)
     with transaction.atomic():
         run = analysis_run_start(comparison=demo, user=None)

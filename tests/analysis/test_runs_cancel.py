@@ -5,6 +5,7 @@ from io import StringIO
 
 import pytest
 from django.contrib.auth import get_user_model
+from django.contrib.auth.models import User
 from django.core.management import call_command
 from rest_framework.test import APIClient
 
@@ -87,9 +88,10 @@ def test_a_chunk_storing_while_the_run_is_cancelled_stores_nothing(running, monk
 
 @pytest.mark.parametrize("persona", ["other_coordinator", "lab03", "anonymous"])
 def test_others_cannot_cancel(running, persona):
+    who: User | None
     if persona == "other_coordinator":
-        other = UserFactory(username="other-coordinator")
-        ComparisonFactory(code="OTHER-01").coordinators.add(other)
+        other = UserFactory.create(username="other-coordinator")
+        ComparisonFactory.create(code="OTHER-01").coordinators.add(other)
         who = other
     else:
         who = None if persona == "anonymous" else user(persona)

@@ -138,6 +138,7 @@ def test_reference_laboratory_u_is_its_reported_u_with_its_own_k(demo):
         Score.objects.filter(run=run).exclude(result__submission__participant=ref)
         .select_related("result").first()
     )  # fmt: skip
+    assert other is not None
     r, big_u_ref = other.result, pilot[other.result.measurement_point_id].expanded_uncertainty
     x_ref = pilot[r.measurement_point_id].value
     assert other.en == pytest.approx(

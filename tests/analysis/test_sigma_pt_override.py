@@ -38,7 +38,7 @@ def demo():
     return comparison
 
 
-def sigmas(run) -> dict[int, float]:
+def sigmas(run) -> dict[int, float | None]:
     rows = AssignedValue.objects.filter(run=run).values_list("measurement_point_id", "sigma_pt")
     return dict(rows)
 

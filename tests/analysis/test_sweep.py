@@ -115,6 +115,7 @@ def test_a_chunk_being_stored_is_skipped_by_the_sweep(demo, settings, monkeypatc
     thread, go = chunk_paused_before_commit(run, monkeypatch, out)
     time.sleep(0.5)  # the chunk's heartbeat is stale now (skipped while its row is locked)
     chunk = AnalysisChunk.objects.get(run=run, index=0)  # not locked for a plain read
+    assert chunk.heartbeat_at is not None
     assert chunk.heartbeat_at < timezone.now() - dt.timedelta(seconds=0.3)
     run.refresh_from_db()  # the run's heartbeat goes on
     assert run.heartbeat_at > timezone.now() - dt.timedelta(seconds=0.3)
@@ -210,7 +211,12 @@ def test_a_run_lost_after_planning_gets_its_unclaimed_chunks_sent(
 def test_two_sweeps_at_once_send_each_task_once(demo, settings, monkeypatch):
     run = started(demo, settings, 300, monkeypatch)
     sent = []
-    monkeypatch.setattr(services, "_enqueue", lambda task, *a, **kw: sent.append(a) or True)
+
+    def enqueue(task, *a, **kw):
+        sent.append(a)
+        return True
+
+    monkeypatch.setattr(services, "_enqueue", enqueue)
     claim_then_lose(run, 0)
     AnalysisRun.objects.filter(pk=run.pk).update(heartbeat_at=long_ago())
     barrier, results = threading.Barrier(2), []

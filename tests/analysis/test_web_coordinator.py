@@ -37,14 +37,15 @@ def user(name):
 
 @pytest.fixture
 def other_coordinator(demo):
-    other = UserFactory(username="other-coordinator")
-    ComparisonFactory(code="IMU-OTHER").coordinators.add(other)
+    other = UserFactory.create(username="other-coordinator")
+    ComparisonFactory.create(code="IMU-OTHER").coordinators.add(other)
     return other
 
 
 def coordinator_pages(demo, run):
     submission = Submission.objects.filter(participant__comparison=demo).first()
     point = demo.measurement_points.first()
+    assert submission is not None and point is not None
     c = f"/coordinator/{CODE}/"
     return [
         c, c + "edit/", c + "devices/new/", c + "points/generate/", f"{c}points/{point.pk}/",
@@ -165,6 +166,7 @@ def test_points_from_lists_and_override(client, demo):
     assert response.status_code == 302
     assert c.measurement_points.count() == 4
     point = c.measurement_points.first()
+    assert point is not None
     url = f"/coordinator/IMU-LISTS/points/{point.pk}/"
     client.post(url, {"assigned_value_method": "algorithm_a", "sigma_pt_value": "2.5"})
     point = MeasurementPoint.objects.get(pk=point.pk)
@@ -230,11 +232,12 @@ def test_ask_to_check_says_nothing_about_the_deviation(client, demo):
     client.force_login(user("coordinator"))
     participant = Participant.objects.get(comparison=demo, laboratory__name__startswith="Outlier")
     result = participant.submissions.get().results.first()
+    assert result is not None
     mail.outbox.clear()
     response = client.post(f"/coordinator/{CODE}/review/results/{result.pk}/check/")
     assert response.status_code == 302
     assert len(mail.outbox) == 1
-    body = mail.outbox[0].body
+    body = str(mail.outbox[0].body)
     assert "please check" in mail.outbox[0].subject
     assert str(result.value) not in body and "%" not in body
 

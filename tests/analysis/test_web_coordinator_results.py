@@ -97,6 +97,7 @@ def test_scores_table_filters_and_flags(client, run):
     assert "text-bg-danger" in page  # the outlier is flagged on MEMS 2
     assert "27 scores" in page
     score = Score.objects.filter(run=run, result__submission__participant__code=outlier).first()
+    assert score is not None
     assert f"{score.en:.2f}" in client.get(C + "scores/", {"lab": outlier}).content.decode()
     page2 = client.get(C + "scores/", {"page": 2}).content.decode()
     assert "Page 2 of" in page2

@@ -56,7 +56,7 @@ def browser_type_launch_args(browser_type_launch_args: dict) -> dict:
 
 
 @pytest.fixture(scope="module")
-def playwright(_async_unsafe_allowed: None):  # type: ignore[no-untyped-def]
+def playwright(_async_unsafe_allowed: None):
     """Per module (the plugin's is per session), so its event loop ends with the module."""
     from playwright.sync_api import sync_playwright
 
@@ -65,7 +65,7 @@ def playwright(_async_unsafe_allowed: None):  # type: ignore[no-untyped-def]
 
 
 @pytest.fixture(scope="module")
-def browser(playwright, browser_type_launch_args: dict):  # type: ignore[no-untyped-def]
+def browser(playwright, browser_type_launch_args: dict):
     browser = playwright.chromium.launch(**browser_type_launch_args)
     yield browser
     browser.close()
@@ -84,14 +84,14 @@ def browser_context_args() -> dict:
 
 
 @pytest.fixture
-def shots(request: pytest.FixtureRequest):  # type: ignore[no-untyped-def]
+def shots(request: pytest.FixtureRequest):
     """``shots(page, name, publish=False)``: a full-page PNG in test-artifacts/browser/<test>/;
     with ``publish`` and ``UPDATE_SCREENSHOTS=1`` also a copy in docs/screenshots/."""
     folder = ARTIFACTS / request.node.name
     folder.mkdir(parents=True, exist_ok=True)
     update = bool(os.environ.get("UPDATE_SCREENSHOTS"))
 
-    def take(page, name: str, *, publish: bool = False) -> Path:  # type: ignore[no-untyped-def]
+    def take(page, name: str, *, publish: bool = False) -> Path:
         path = folder / f"{name}.png"
         page.screenshot(path=path, full_page=True)
         if publish and update:
@@ -106,11 +106,11 @@ class ConsoleErrors(list):
     """Console errors and uncaught exceptions of the watched pages (CSP violations show up
     here as console errors)."""
 
-    def watch(self, page) -> None:  # type: ignore[no-untyped-def]
+    def watch(self, page) -> None:
         page.on("console", lambda message: self._console(page, message))
         page.on("pageerror", lambda error: self.append(f"{page.url}: {error}"))
 
-    def _console(self, page, message) -> None:  # type: ignore[no-untyped-def]
+    def _console(self, page, message) -> None:
         # The site has no favicon: Chromium's automatic request for it is not the page's.
         url = message.location.get("url", "")
         if message.type == "error" and not url.endswith("/favicon.ico"):
@@ -118,7 +118,7 @@ class ConsoleErrors(list):
 
 
 @pytest.fixture
-def console_errors(page) -> ConsoleErrors:  # type: ignore[no-untyped-def]
+def console_errors(page) -> ConsoleErrors:
     errors = ConsoleErrors()
     errors.watch(page)
     return errors

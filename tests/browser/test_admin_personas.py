@@ -31,16 +31,19 @@ def _admin_sign_in(page: Page, base: str, username: str) -> None:
 def test_admin_refuses_a_staff_coordinator_and_serves_the_superuser(
     page: Page, new_context, live_server, shots
 ):
-    mine, other = ComparisonFactory(code="ADM-MINE"), ComparisonFactory(code="ADM-OTHER")
-    Participant.objects.create(
-        comparison=other, laboratory=LaboratoryFactory(name=SECRET_LAB), code="QX9"
+    mine, other = (
+        ComparisonFactory.create(code="ADM-MINE"),
+        ComparisonFactory.create(code="ADM-OTHER"),
     )
-    coordinator = UserFactory(username="carla", is_staff=True)
+    Participant.objects.create(
+        comparison=other, laboratory=LaboratoryFactory.create(name=SECRET_LAB), code="QX9"
+    )
+    coordinator = UserFactory.create(username="carla", is_staff=True)
     coordinator.user_permissions.set(
         Permission.objects.filter(content_type__app_label__in=["proficiency", "labs", "analysis"])
     )
     mine.coordinators.add(coordinator)
-    UserFactory(username="root", is_staff=True, is_superuser=True)
+    UserFactory.create(username="root", is_staff=True, is_superuser=True)
     base = live_server.url
 
     _admin_sign_in(page, base, "carla")

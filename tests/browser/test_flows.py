@@ -19,7 +19,7 @@ import re
 
 import pytest
 from django.utils import timezone
-from playwright.sync_api import Page, expect
+from playwright.sync_api import FilePayload, Page, expect
 from pypdf import PdfReader
 
 from analysis.models import AnalysisRun, Report, Score
@@ -44,21 +44,22 @@ LINEAR_POINTS = {(axis, f) for axis in "XYZ" for f in (5.0, 10.0, 20.0)}  # prot
 
 def _comparison(status: str, **fields: object) -> Comparison:
     """One MEMS on the linear bench: 3 axes x 5/10/20 Hz = 9 measurement points."""
-    comparison = ComparisonFactory(code=CODE, status=status, protocol="linear", **fields)
-    device = DeviceFactory(comparison=comparison, name="MEMS 1")
+    comparison = ComparisonFactory.create(code=CODE, status=status, protocol="linear", **fields)
+    device = DeviceFactory.create(comparison=comparison, name="MEMS 1")
     comparison_apply_template(comparison=comparison, template_key="linear", devices=[device])
     return comparison
 
 
 def _lab_member(comparison: Comparison, lab_name: str, username: str) -> Participant:
-    lab = LaboratoryFactory(name=lab_name)
-    user = UserFactory(username=username)
+    lab = LaboratoryFactory.create(name=lab_name)
+    user = UserFactory.create(username=username)
     Membership.objects.create(user=user, laboratory=lab, role=Membership.Role.STAFF)
     return participant_add(comparison=comparison, laboratory=lab)
 
 
 def _sign_in(page: Page, base: str, username: str, shots, shot: str | None = None) -> None:
     response = page.goto(f"{base}/accounts/login/")
+    assert response is not None
     # The pages run under the site's CSP, so a violation would show as a console error.
     assert "script-src 'self'" in response.headers["content-security-policy"]
     expect(page.get_by_role("heading", name="Sign in")).to_be_visible()
@@ -80,7 +81,7 @@ def _csv(rows: list[dict[str, str]]) -> bytes:
 
 def _upload(page: Page, name: str, data: bytes) -> None:
     page.locator("input[type=file]").set_input_files(
-        files=[{"name": name, "mimeType": "text/csv", "buffer": data}]
+        files=[FilePayload(name=name, mimeType="text/csv", buffer=data)]
     )
     page.get_by_role("button", name="Upload and submit").click()
 
@@ -163,7 +164,7 @@ def analysable(db) -> tuple[Comparison, dict[str, Participant]]:
     three is the assigned value; pairwise En = 12 / (8 * sqrt 2) = 1.06 for Alpha-Gamma only.
     """
     comparison = _comparison(ComparisonStatus.CLOSED, assigned_value_method="weighted_mean")
-    coordinator = UserFactory(username="carla")
+    coordinator = UserFactory.create(username="carla")
     comparison.coordinators.add(coordinator)
     points = list(comparison.measurement_points.order_by("axis", "frequency_hz"))
     labs = {}

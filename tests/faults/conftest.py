@@ -70,7 +70,7 @@ def require_services() -> None:
     pytest.skip(message)
 
 
-def pytest_terminal_summary(terminalreporter) -> None:  # type: ignore[no-untyped-def]
+def pytest_terminal_summary(terminalreporter) -> None:
     if MISSING and any(
         "tests/faults" in str(getattr(r, "nodeid", ""))
         for r in terminalreporter.stats.get("skipped", [])
@@ -126,7 +126,8 @@ class Workers:
     def check_alive(self) -> None:
         for proc in self.procs:
             if proc.returncode is None and proc.poll() is not None:
-                pytest.fail(f"worker exited ({proc.returncode}): {proc.stdout.read()}")
+                output = proc.stdout.read() if proc.stdout else ""
+                pytest.fail(f"worker exited ({proc.returncode}): {output}")
 
     def stop(self) -> None:
         for proc in self.procs:

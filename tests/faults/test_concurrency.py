@@ -5,6 +5,7 @@ version when they are the same results (a retry)."""
 import threading
 from collections.abc import Callable
 from io import StringIO
+from typing import Any
 
 import pytest
 from django.contrib.auth import get_user_model
@@ -24,10 +25,12 @@ pytestmark = [pytest.mark.services, pytest.mark.django_db(transaction=True)]
 CODE = "IMU-2024-DEMO"
 
 
-def at_once(*calls: Callable[[], object]) -> list[object]:
-    """Run ``calls`` in threads released together (each thread has its own connection)."""
+def at_once(*calls: Callable[[], object]) -> list[Any]:
+    """Run ``calls`` in threads released together (each thread has its own connection).
+
+    Their answers, or the exceptions they raised (the tests check for those)."""
     barrier = threading.Barrier(len(calls))
-    out: list[object] = [None] * len(calls)
+    out: list[Any] = [None] * len(calls)
 
     def body(i: int) -> None:
         try:

@@ -31,7 +31,7 @@ def terminate(pid: int) -> None:
 class KilledMidway(list):
     """The rows of the COPY; the connection's backend is terminated when row KILL_AT is read."""
 
-    def __iter__(self):  # type: ignore[no-untyped-def]
+    def __iter__(self):
         for i, row in enumerate(list.__iter__(self)):
             if i == KILL_AT:
                 terminate(connection.connection.info.backend_pid)
@@ -44,7 +44,7 @@ def test_connection_dropped_mid_copy_stores_nothing(grid, monkeypatch):  # noqa:
     copied: list[int] = []
     original = services.results_insert
 
-    def insert(values):  # type: ignore[no-untyped-def]
+    def insert(values):
         copied.append(len(values))
         return original(KilledMidway(values))
 

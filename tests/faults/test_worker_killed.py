@@ -138,6 +138,7 @@ def recover_with_sweep(workers, run: AnalysisRun, tmp_path, env: dict[str, str])
 
     wait_until(finished, "the run to finish", workers, timeout=STALE + 30 * SWEEP)
     assert run.status == "succeeded", run.error
+    assert run.finished_at is not None
     return run.finished_at.timestamp() - t_ready
 
 

@@ -12,6 +12,7 @@ the project's code: the worker is started with ``-A tests.faults.worker_app``.
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 from celery.signals import task_prerun, worker_process_init, worker_ready
 
@@ -54,7 +55,7 @@ def _install_hang() -> None:
         chunk = _current.get("task") == "analysis.tasks.analysis_chunk_task"
         return chunk and int(_current["args"][1]) == int(hang)  # type: ignore[index]
 
-    def write_scores(*args: object, **kwargs: object) -> object:
+    def write_scores(*args: Any, **kwargs: Any) -> int:
         out = original(*args, **kwargs)
         if hangs_here():
             Path(os.environ["FAULT_MARKER"]).write_text(f"{time.time()} {os.getpid()}")

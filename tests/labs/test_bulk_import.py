@@ -35,16 +35,16 @@ POINTS = [("MEMS 1", a, f) for a in ("X", "Y") for f in (5, 10)] + [("MEMS 2", "
 @pytest.fixture
 def round_(settings):
     settings.RESULTS_IMPORT_CHUNK_ROWS = 4  # several chunks even for these small files
-    comparison = ComparisonFactory(status="open")
-    mems1 = DeviceFactory(comparison=comparison, name="MEMS 1")
-    mems2 = DeviceFactory(comparison=comparison, name="MEMS 2")
+    comparison = ComparisonFactory.create(status="open")
+    mems1 = DeviceFactory.create(comparison=comparison, name="MEMS 1")
+    mems2 = DeviceFactory.create(comparison=comparison, name="MEMS 2")
     measurement_points_generate(
         comparison=comparison, devices=[mems1], axes=["X", "Y"], frequencies_hz=[5, 10],
         benches=["linear"],
     )  # fmt: skip
-    MeasurementPointFactory(device=mems2, axis="X", frequency_hz=5)
-    participants = {c: ParticipantFactory(comparison=comparison, code=c) for c in CODES}
-    coordinator = UserFactory(username="coordinator")
+    MeasurementPointFactory.create(device=mems2, axis="X", frequency_hz=5)
+    participants = {c: ParticipantFactory.create(comparison=comparison, code=c) for c in CODES}
+    coordinator = UserFactory.create(username="coordinator")
     comparison.coordinators.add(coordinator)
     return comparison, participants, coordinator
 
@@ -123,14 +123,16 @@ def test_rows_in_any_order_and_a_subset_of_participants(round_):
 
 def test_new_version_supersedes_and_decided_versions_stay(round_):
     comparison, participants, coordinator = round_
-    accepted = SubmissionFactory(participant=participants["L01"], version=1, status="accepted")
+    accepted = SubmissionFactory.create(
+        participant=participants["L01"], version=1, status="accepted"
+    )
     first_point = comparison.measurement_points.first()
-    kept = ResultFactory(submission=accepted, measurement_point=first_point)
-    draft = SubmissionFactory(participant=participants["L02"], version=1, status="draft")
-    ResultFactory(submission=draft, measurement_point=comparison.measurement_points.first(),
+    kept = ResultFactory.create(submission=accepted, measurement_point=first_point)
+    draft = SubmissionFactory.create(participant=participants["L02"], version=1, status="draft")
+    ResultFactory.create(submission=draft, measurement_point=comparison.measurement_points.first(),
                   value=999.0)  # fmt: skip
-    SubmissionFactory(participant=participants["L03"], version=1, status="rejected")
-    SubmissionFactory(participant=participants["L03"], version=2, status="submitted")
+    SubmissionFactory.create(participant=participants["L03"], version=1, status="rejected")
+    SubmissionFactory.create(participant=participants["L03"], version=2, status="submitted")
     summary = run(comparison, coordinator, records())
     assert (summary.new_versions, summary.drafts_submitted) == (2, 1)
     versions = {
@@ -293,7 +295,7 @@ def test_missing_points_refuse_the_participant(round_):
 def test_error_in_the_last_chunk_stores_nothing(round_, settings):
     comparison, participants, coordinator = round_
     settings.RESULTS_IMPORT_CHUNK_ROWS = 2  # 8 chunks; the bad row is alone in the last one
-    SubmissionFactory(participant=participants["L01"], version=1, status="draft")
+    SubmissionFactory.create(participant=participants["L01"], version=1, status="draft")
     before = list(Submission.objects.values_list("pk", "version", "status"))
     rows = records()
     rows[-1]["expanded_uncertainty"] = "0"
@@ -318,14 +320,14 @@ def test_error_list_is_capped_with_a_count(round_, settings):
 
 def test_only_a_coordinator_of_the_comparison_may_import(round_):
     comparison, participants, _ = round_
-    other_coordinator = UserFactory()
-    ComparisonFactory().coordinators.add(other_coordinator)
-    lab_member = MembershipFactory(laboratory=participants["L01"].laboratory).user
-    for user in (UserFactory(), other_coordinator, lab_member):
+    other_coordinator = UserFactory.create()
+    ComparisonFactory.create().coordinators.add(other_coordinator)
+    lab_member = MembershipFactory.create(laboratory=participants["L01"].laboratory).user
+    for user in (UserFactory.create(), other_coordinator, lab_member):
         with pytest.raises(NotVisible):
             run(comparison, user, records())
     assert _nothing_stored() == (0, 0, 0)
-    admin = UserFactory(is_superuser=True)
+    admin = UserFactory.create(is_superuser=True)
     assert run(comparison, admin, records()).rows == 15
 
 
@@ -407,7 +409,8 @@ def test_seen_keys_against_a_dict():
 
     from labs.bulk_import import _Seen
 
-    rng, seen, first, row = np.random.default_rng(0), _Seen(), {}, 2
+    first: dict[int, int] = {}
+    rng, seen, row = np.random.default_rng(0), _Seen(), 2
     for _ in range(30):
         keys, rows = rng.integers(0, 3000, 500), np.arange(row, row + 500)
         row += 500

@@ -186,12 +186,12 @@ def test_a_parallel_burst_of_wide_rows_stays_bounded(world):
 
 @pytest.fixture
 def web_participant(db):
-    return ParticipantFactory(comparison=open_comparison("CMP-H"), code="L44")
+    return ParticipantFactory.create(comparison=open_comparison("CMP-H"), code="L44")
 
 
 @pytest.fixture
 def web_staff(client, web_participant):
-    user = MembershipFactory(laboratory=web_participant.laboratory).user
+    user = MembershipFactory.create(laboratory=web_participant.laboratory).user
     client.force_login(user)
     return user
 

@@ -19,7 +19,7 @@ import pytest
 from openpyxl.worksheet._reader import WorkSheetParser
 
 from labs.importers import ImportErrors, parse_rows, parse_table, write_table
-from labs.importers.errors import MAX_LISTED_ERRORS
+from labs.importers.errors import MAX_LISTED_ERRORS, RowError
 from labs.importers.readers import MAX_COLUMNS
 from labs.importers.validate import _error_order, validate_record
 from labs.importers.values import escape_text, unescape_text
@@ -76,7 +76,7 @@ def wide_xlsx(n_cells: int) -> bytes:
     return xlsx_with_sheet(sheet_xml(inline_row(1, NAMES), b'<row r="2">%s</row>' % cells))
 
 
-def peak_bytes(action) -> int:  # type: ignore[no-untyped-def]
+def peak_bytes(action) -> int:
     tracemalloc.start()
     try:
         with contextlib.suppress(ImportErrors):
@@ -138,7 +138,7 @@ def parse_cell_calls(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     calls = [0]
     original = WorkSheetParser.parse_cell
 
-    def counted(self, element):  # type: ignore[no-untyped-def]
+    def counted(self, element):
         calls[0] += 1
         return original(self, element)
 
@@ -242,7 +242,7 @@ def test_the_listed_problems_are_the_first_in_row_and_column_order() -> None:
         for name in rng.sample(["axis", "bench", "sensitivity", "expanded_uncertainty"], 2):
             record[name] = "-1" if name in ("sensitivity", "expanded_uncertainty") else "?"
         records.append(record)
-    every = []
+    every: list[RowError] = []
     for number, record in enumerate(records, start=1):
         every.extend(validate_record(record, number))  # type: ignore[arg-type]
     every.sort(key=_error_order)

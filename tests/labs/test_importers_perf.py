@@ -18,6 +18,7 @@ from labs.importers import ImportErrors, PointKey, ResultRow, TableContext, pars
 from labs.importers.columns import validate_records_fast
 from labs.importers.matching import FrequencyIndex
 from labs.importers.readers import read_sheet
+from labs.importers.schema import LabColumn
 from labs.importers.validate import cells_to_record, check_header, validate_records
 
 NUMBER_TEXTS = [
@@ -100,7 +101,9 @@ OPTIONS = st.fixed_dictionaries(
 )
 
 
-def outcome(validate, *args, **kwargs) -> list[ResultRow] | list[tuple[object, ...]]:
+def outcome(
+    validate, *args, **kwargs
+) -> list[ResultRow] | list[tuple[int | None, str | None, str]]:
     """The rows, or the errors as tuples (ImportErrors is compared by its list)."""
     try:
         return validate(*args, **kwargs)
@@ -122,17 +125,25 @@ def test_fast_and_precise_validation_agree(records: list[dict], options: dict) -
     assert same(fast, precise)
 
 
-def precise_parse(data: bytes, **options: object) -> list[ResultRow]:
+def precise_parse(
+    data: bytes, *, lab_column: LabColumn, context: TableContext | None
+) -> list[ResultRow]:
     """The importer before the fast path: per row, record by record."""
     sheet = read_sheet(data, filename=None, content_type=None, max_rows=10**6)
-    names = check_header(sheet.header, lab_column=options["lab_column"], row=sheet.header_row)
+    names = check_header(sheet.header, lab_column=lab_column, row=sheet.header_row)
     columns = [name for name in names if name]  # a sheet's rows hold the named cells only
     errors, records = list(sheet.errors), []
     for number, cells in sheet.rows:
         record, cell_errors = cells_to_record(columns, cells, number)
         errors.extend(cell_errors)
         records.append((number, record))
-    return validate_records(records, decimal_comma=sheet.decimal_comma, errors=errors, **options)
+    return validate_records(
+        records,
+        decimal_comma=sheet.decimal_comma,
+        errors=errors,
+        lab_column=lab_column,
+        context=context,
+    )
 
 
 def text(value: object) -> str:

@@ -100,7 +100,7 @@ def test_mg_per_lsb_keeps_the_relative_size_of_repeat_sd() -> None:
 
 
 def test_xlsx_numeric_cells() -> None:
-    header = [*BASE, "repeat_sd", "n_repeats"]
+    header: list[object] = [*BASE, "repeat_sd", "n_repeats"]
     data = xlsx([header, ["MEMS 1", "X", 10, "linear", 418, 4.2, 0.31, 4],
                  ["MEMS 1", "Y", 10, "linear", 418, 4.2, 0.29, 4.0],
                  ["MEMS 1", "Z", 10, "linear", 418, 4.2, 0.29, 4.5]])  # fmt: skip

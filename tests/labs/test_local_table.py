@@ -2,6 +2,7 @@
 it (same values, same problems), without the upload's size and row limits."""
 
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 import pytest
@@ -11,7 +12,14 @@ from labs.importers import local as local_module
 from labs.importers.local import LocalTable, read_local_table
 
 HEADER = "lab,device,axis,frequency_hz,bench,direction,sensitivity,expanded_uncertainty"
-NO_LIMIT = {"max_bytes": 2**40, "max_rows": 10**9}
+
+
+class Limits(TypedDict):
+    max_bytes: int
+    max_rows: int
+
+
+NO_LIMIT: Limits = {"max_bytes": 2**40, "max_rows": 10**9}
 FIELDS = ("row", "lab", "device", "axis", "frequency_hz", "bench", "direction", "sensitivity",
           "expanded_uncertainty", "coverage_factor")  # fmt: skip
 

@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from labs.importers import ImportErrors
 from labs.importers.local import read_local_table
 from tests.labs.test_local_table import (
     assert_same,
@@ -64,7 +65,7 @@ def test_streamed_way_reads_them_too(tmp_path, streamed):
 )  # fmt: skip
 def test_problems_as_an_upload_lists_them(tmp_path, row):
     path = write(tmp_path, [HEADER, ROWS[0], row])
-    with pytest.raises(Exception) as err:
+    with pytest.raises(ImportErrors) as err:
         read_local_table(path)
     want = upload_errors(path)
     assert [(e.row, e.field, e.message) for e in err.value.errors] == [

@@ -12,7 +12,7 @@ pytestmark = pytest.mark.django_db
 
 
 def test_codes_are_unique_and_well_formed():
-    comparison = ComparisonFactory()
+    comparison = ComparisonFactory.create()
     labs = LaboratoryFactory.create_batch(40)
     codes = [participant_add(comparison=comparison, laboratory=lab).code for lab in labs]
     assert len(set(codes)) == 40
@@ -20,7 +20,7 @@ def test_codes_are_unique_and_well_formed():
 
 
 def test_adding_twice_returns_the_same_participant():
-    comparison, lab = ComparisonFactory(), LaboratoryFactory()
+    comparison, lab = ComparisonFactory.create(), LaboratoryFactory.create()
     first = participant_add(comparison=comparison, laboratory=lab)
     assert participant_add(comparison=comparison, laboratory=lab) == first
     assert Participant.objects.count() == 1
@@ -31,7 +31,7 @@ def test_codes_are_not_derived_from_the_lab():
     labs = LaboratoryFactory.create_batch(5)
     per_lab: dict[int, set[str]] = {lab.pk: set() for lab in labs}
     for _ in range(30):
-        comparison = ComparisonFactory()
+        comparison = ComparisonFactory.create()
         for lab in labs:
             per_lab[lab.pk].add(participant_add(comparison=comparison, laboratory=lab).code)
     # A deterministic scheme (join order, lab id, name hash) would give 1 code per lab.
@@ -48,8 +48,8 @@ def test_codes_are_not_derived_from_the_lab():
 
 
 def test_codes_grow_to_three_digits_when_two_are_used_up():
-    comparison = ComparisonFactory()
+    comparison = ComparisonFactory.create()
     for n in range(1, 100):
-        ParticipantFactory(comparison=comparison, code=f"L{n:02d}")
+        ParticipantFactory.create(comparison=comparison, code=f"L{n:02d}")
     code = participant_code_new(comparison=comparison)
     assert re.fullmatch(r"L\d{3}", code)

@@ -19,6 +19,7 @@ def test_demo_raw_records_recomputed_and_idempotent(django_capture_on_commit_cal
         assert row.status == "succeeded", row.error
         truth = row.reported_value * RAW_BIAS
         assert row.sensitivity == pytest.approx(truth, rel=5e-4)
+        assert row.sensitivity is not None and row.expanded_uncertainty is not None
         assert row.en == pytest.approx(
             (row.reported_value - row.sensitivity)
             / (row.reported_expanded_uncertainty**2 + row.expanded_uncertainty**2) ** 0.5

@@ -16,14 +16,14 @@ pytestmark = pytest.mark.django_db
 
 @pytest.fixture
 def setup():
-    comparison = ComparisonFactory(status="open")
-    device = DeviceFactory(comparison=comparison, name="MEMS 1")
+    comparison = ComparisonFactory.create(status="open")
+    device = DeviceFactory.create(comparison=comparison, name="MEMS 1")
     measurement_points_generate(
         comparison=comparison, devices=[device], axes=["X", "Y"], frequencies_hz=[5, 10],
         benches=["linear"],
     )  # fmt: skip
-    participant = ParticipantFactory(comparison=comparison)
-    return participant, UserFactory()
+    participant = ParticipantFactory.create(comparison=comparison)
+    return participant, UserFactory.create()
 
 
 def rows(n_axes=("X", "Y"), value=420.0, **extra):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import zipfile
+from collections.abc import Mapping, Sequence
 
 import openpyxl
 import pytest
@@ -27,16 +28,16 @@ CURVILINEAR = ("tangential", "radial")
 @pytest.fixture
 def grid():
     """An open comparison: 10 devices × 3 axes × 40 frequencies × 3 bench directions."""
-    comparison = ComparisonFactory(status="open")
-    devices = [DeviceFactory(comparison=comparison, name=f"MEMS {i}") for i in range(1, 11)]
+    comparison = ComparisonFactory.create(status="open")
+    devices = [DeviceFactory.create(comparison=comparison, name=f"MEMS {i}") for i in range(1, 11)]
     measurement_points_generate(
         comparison=comparison, devices=devices, axes=["X", "Y", "Z"],
         frequencies_hz=FREQUENCIES, benches=["linear", "curvilinear"],
     )  # fmt: skip
-    return ParticipantFactory(comparison=comparison), UserFactory()
+    return ParticipantFactory.create(comparison=comparison), UserFactory.create()
 
 
-def records() -> list[dict[str, object]]:
+def records() -> list[dict[str, str]]:
     """A complete result set for :func:`grid`, values as text."""
     out = []
     for i, (bench, direction) in enumerate(
@@ -51,7 +52,7 @@ def records() -> list[dict[str, object]]:
     return out
 
 
-def csv_file(rows: list[dict[str, object]], *, sep: str = ",", bom: bool = False) -> bytes:
+def csv_file(rows: Sequence[Mapping[str, object]], *, sep: str = ",", bom: bool = False) -> bytes:
     names = list(dict.fromkeys(name for row in rows for name in row))
     buffer = io.StringIO()
     writer = csv.writer(buffer, delimiter=sep, lineterminator="\r\n")
@@ -60,7 +61,7 @@ def csv_file(rows: list[dict[str, object]], *, sep: str = ",", bom: bool = False
     return ("\ufeff" if bom else "").encode() + buffer.getvalue().encode()
 
 
-def xlsx_file(rows: list[dict[str, object]], *, formula: str | None = None) -> bytes:
+def xlsx_file(rows: list[dict[str, str]], *, formula: str | None = None) -> bytes:
     """A workbook as a spreadsheet program writes it: numbers as numbers."""
     book = openpyxl.Workbook()
     sheet = book.active
@@ -83,7 +84,9 @@ def upload(grid, data: bytes, filename: str = "results.csv", submit: bool = True
     )
 
 
-def refused(grid, data: bytes, filename: str = "results.csv") -> list[tuple[object, ...]]:
+def refused(
+    grid, data: bytes, filename: str = "results.csv"
+) -> list[tuple[int | None, str | None, str]]:
     with pytest.raises(ValidationFailed) as caught:
         upload(grid, data, filename)
     assert Submission.objects.count() == 0 and Result.objects.count() == 0
@@ -93,7 +96,7 @@ def refused(grid, data: bytes, filename: str = "results.csv") -> list[tuple[obje
 # --- good files -----------------------------------------------------------------------------
 
 
-def stored(submission: Submission) -> dict[tuple[object, ...], tuple[float, float, float]]:
+def stored(submission: Submission) -> dict[tuple[object, ...], tuple[float, ...]]:
     values = submission.results.values_list(
         "measurement_point__device__name", "measurement_point__axis",
         "measurement_point__frequency_hz", "measurement_point__bench",
@@ -243,7 +246,7 @@ def test_json_and_file_store_identical_rows(grid) -> None:
         row["coverage_factor"] = ["2", "2.5", "1.96"][i % 3]
         if i % 4 == 1:
             row["expanded_uncertainty"] = "1.5%"
-    other = ParticipantFactory(comparison=participant.comparison)
+    other = ParticipantFactory.create(comparison=participant.comparison)
     json_rows = [
         {k: float(v) if k in ("frequency_hz", "sensitivity", "coverage_factor") else v
          for k, v in row.items()}
@@ -266,8 +269,8 @@ def test_json_and_file_store_identical_rows(grid) -> None:
 @pytest.fixture
 def big_grid():
     """An open comparison with exactly 100,000 points: 25 devices × 2 axes × 2000 frequencies."""
-    comparison = ComparisonFactory(status="open")
-    devices = [DeviceFactory(comparison=comparison, name=f"MEMS {i}") for i in range(1, 26)]
+    comparison = ComparisonFactory.create(status="open")
+    devices = [DeviceFactory.create(comparison=comparison, name=f"MEMS {i}") for i in range(1, 26)]
     frequencies = [1 + 0.5 * i for i in range(2000)]
     measurement_points_generate(
         comparison=comparison, devices=devices, axes=["X", "Y"], frequencies_hz=frequencies,
@@ -281,7 +284,7 @@ def big_grid():
     ]
     data = ("device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\n"
             + "\n".join(lines)).encode()  # fmt: skip
-    return ParticipantFactory(comparison=comparison), UserFactory(), data
+    return ParticipantFactory.create(comparison=comparison), UserFactory.create(), data
 
 
 def test_100k_row_csv_is_stored_completely(big_grid) -> None:

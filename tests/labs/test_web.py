@@ -47,8 +47,10 @@ class World:
 def open_comparison(code: str, **extra) -> Comparison:
     """An open comparison with MEMS 1, axes X and Y, 5 and 10 Hz on the linear bench."""
     deadline = timezone.now() + dt.timedelta(days=30)
-    comparison = ComparisonFactory(code=code, status="open", submission_deadline=deadline, **extra)
-    device = DeviceFactory(comparison=comparison, name="MEMS 1")
+    comparison = ComparisonFactory.create(
+        code=code, status="open", submission_deadline=deadline, **extra
+    )
+    device = DeviceFactory.create(comparison=comparison, name="MEMS 1")
     measurement_points_generate(
         comparison=comparison,
         devices=[device],
@@ -60,26 +62,26 @@ def open_comparison(code: str, **extra) -> Comparison:
 
 
 def submitted(participant: Participant, value: float = A_VALUE) -> Submission:
-    submission = SubmissionFactory(
+    submission = SubmissionFactory.create(
         participant=participant, status="submitted", submitted_at=timezone.now()
     )
     for point in participant.comparison.measurement_points.all():
-        ResultFactory(submission=submission, measurement_point=point, value=value)
+        ResultFactory.create(submission=submission, measurement_point=point, value=value)
     return submission
 
 
 def make_world() -> World:
-    lab_a = LaboratoryFactory(name=A_NAME)
-    lab_b = LaboratoryFactory(name="Lab Bravo Calibration")
-    a_staff = MembershipFactory(laboratory=lab_a, user__username="alpha-staff").user
-    a_manager = MembershipFactory(
+    lab_a = LaboratoryFactory.create(name=A_NAME)
+    lab_b = LaboratoryFactory.create(name="Lab Bravo Calibration")
+    a_staff = MembershipFactory.create(laboratory=lab_a, user__username="alpha-staff").user
+    a_manager = MembershipFactory.create(
         laboratory=lab_a, user__username="alpha-manager", role=Membership.Role.MANAGER
     ).user
-    b_staff = MembershipFactory(laboratory=lab_b, user__username="bravo-staff").user
+    b_staff = MembershipFactory.create(laboratory=lab_b, user__username="bravo-staff").user
     cmp_a, cmp_shared = open_comparison("CMP-A"), open_comparison("CMP-SHARED")
-    part_a = ParticipantFactory(comparison=cmp_a, laboratory=lab_a, code="L91")
-    part_a_shared = ParticipantFactory(comparison=cmp_shared, laboratory=lab_a, code="L93")
-    part_b_shared = ParticipantFactory(comparison=cmp_shared, laboratory=lab_b, code="L94")
+    part_a = ParticipantFactory.create(comparison=cmp_a, laboratory=lab_a, code="L91")
+    part_a_shared = ParticipantFactory.create(comparison=cmp_shared, laboratory=lab_a, code="L93")
+    part_b_shared = ParticipantFactory.create(comparison=cmp_shared, laboratory=lab_b, code="L94")
     submitted(part_a)
     submitted(part_a_shared)
     return World(
@@ -207,7 +209,7 @@ def test_comparison_page_shows_protocol_devices_points_and_links(client, world):
 
 def test_history_and_version_detail(client, world):
     client.force_login(world.a_staff)
-    SubmissionFactory(participant=world.part_a, version=2, status="draft", source="file")
+    SubmissionFactory.create(participant=world.part_a, version=2, status="draft", source="file")
     body = visible(client.get(reverse("labs:history", args=["CMP-A"])))
     assert "Version 2" in body and "Version 1" in body and "File upload" in body
     detail = visible(client.get(reverse("labs:submission", args=["CMP-A", 1])))
@@ -217,11 +219,11 @@ def test_history_and_version_detail(client, world):
 
 
 def test_names_and_titles_are_escaped(client):
-    lab = LaboratoryFactory(name="<script>alert(1)</script>")
-    user = MembershipFactory(laboratory=lab).user
+    lab = LaboratoryFactory.create(name="<script>alert(1)</script>")
+    user = MembershipFactory.create(laboratory=lab).user
     comparison = open_comparison("CMP-XSS", title='<img src=x onerror="alert(2)">')
     comparison.devices.update(name="<b>MEMS</b>")
-    ParticipantFactory(comparison=comparison, laboratory=lab)
+    ParticipantFactory.create(comparison=comparison, laboratory=lab)
     client.force_login(user)
     for url in (reverse("labs:dashboard"), *comparison_urls("CMP-XSS")[:3]):
         body = client.get(url).content

@@ -15,7 +15,7 @@ pytestmark = pytest.mark.django_db
 
 @pytest.fixture
 def manager():
-    return MembershipFactory(role=Membership.Role.MANAGER)
+    return MembershipFactory.create(role=Membership.Role.MANAGER)
 
 
 @pytest.fixture
@@ -29,7 +29,9 @@ def test_create_shows_the_key_once_and_it_authenticates(client, manager, keys_ur
     assert response.status_code == 200
     assert "no-cache" in response["Cache-Control"] or "no-store" in response["Cache-Control"]
     body = visible(response)
-    key = re.search(r'id="api-key" class="[^"]*" type="text" value="([^"]+)"', body).group(1)
+    shown = re.search(r'id="api-key" class="[^"]*" type="text" value="([^"]+)"', body)
+    assert shown is not None, body
+    key = shown.group(1)
     assert LabAPIKey.objects.is_valid(key)
     key_obj = LabAPIKey.objects.get_from_key(key)
     assert key_obj.laboratory == manager.laboratory and key_obj.created_by == manager.user
@@ -59,7 +61,9 @@ def test_revoke_asks_then_revokes(client, manager, keys_url):
 
 def test_other_labs_manager_cannot_touch_the_keys(client, manager):
     key_obj, key = api_key_create(laboratory=manager.laboratory, name="mine", user=None)
-    other = MembershipFactory(laboratory=LaboratoryFactory(), role=Membership.Role.MANAGER)
+    other = MembershipFactory.create(
+        laboratory=LaboratoryFactory.create(), role=Membership.Role.MANAGER
+    )
     client.force_login(other.user)
     lab_pk = manager.laboratory_id
     revoke = reverse("labs:api_key_revoke", args=[lab_pk, key_obj.prefix])
@@ -73,7 +77,7 @@ def test_other_labs_manager_cannot_touch_the_keys(client, manager):
 
 def test_staff_cannot_create_or_revoke(client, manager):
     key_obj, key = api_key_create(laboratory=manager.laboratory, name="mine", user=None)
-    staff = MembershipFactory(laboratory=manager.laboratory)
+    staff = MembershipFactory.create(laboratory=manager.laboratory)
     client.force_login(staff.user)
     lab_pk = manager.laboratory_id
     assert client.post(reverse("labs:api_keys", args=[lab_pk]), {"name": "x"}).status_code == 404

@@ -18,12 +18,12 @@ GRID = reverse("labs:grid", args=["CMP-G"])
 @pytest.fixture
 def participant():
     comparison = open_comparison("CMP-G")
-    return ParticipantFactory(comparison=comparison, code="L55")
+    return ParticipantFactory.create(comparison=comparison, code="L55")
 
 
 @pytest.fixture
 def staff(client, participant):
-    user = MembershipFactory(laboratory=participant.laboratory).user
+    user = MembershipFactory.create(laboratory=participant.laboratory).user
     client.force_login(user)
     return user
 

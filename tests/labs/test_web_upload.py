@@ -20,12 +20,12 @@ HEADER = "device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\r\n"
 
 @pytest.fixture
 def participant():
-    return ParticipantFactory(comparison=open_comparison("CMP-U"), code="L66")
+    return ParticipantFactory.create(comparison=open_comparison("CMP-U"), code="L66")
 
 
 @pytest.fixture
 def staff(client, participant):
-    user = MembershipFactory(laboratory=participant.laboratory).user
+    user = MembershipFactory.create(laboratory=participant.laboratory).user
     client.force_login(user)
     return user
 
@@ -67,7 +67,8 @@ def test_good_xlsx_is_submitted(client, staff, participant):
     assert response.status_code == 302
     submission = Submission.objects.get(participant=participant)
     assert submission.status == "submitted"
-    assert submission.results.first().expanded_uncertainty == pytest.approx(419 * 0.015)
+    result = submission.results.first()
+    assert result is not None and result.expanded_uncertainty == pytest.approx(419 * 0.015)
 
 
 def test_bad_csv_gives_a_row_report_and_stores_nothing(client, staff):

@@ -30,7 +30,7 @@ def test_every_model_of_ours_is_registered_with_filters_and_search():
 
 def test_admin_shows_the_demo(client):
     call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    client.force_login(UserFactory(username="root", is_staff=True, is_superuser=True))
+    client.force_login(UserFactory.create(username="root", is_staff=True, is_superuser=True))
     for model, _ in our_admins():
         url = reverse(f"admin:{model._meta.app_label}_{model._meta.model_name}_changelist")
         assert client.get(url).status_code == 200, url

@@ -161,6 +161,7 @@ def test_redis_throttle_is_drfs_sliding_log_shared_and_atomic(settings, world, m
     Retry-After; two throttle objects (two workers) share one bucket."""
     from rest_framework.test import APIRequestFactory
     from rest_framework.throttling import SimpleRateThrottle
+    from rest_framework.views import APIView
 
     from labs.api import throttling
     from labs.models import LabAPIKey
@@ -189,10 +190,11 @@ def test_redis_throttle_is_drfs_sliding_log_shared_and_atomic(settings, world, m
     for t in (*ours, ref):
         t.timer = lambda: clock[0]
     decisions = []
+    view = APIView()  # the throttles key on the request's API key, not the view
     for step, dt in enumerate([0, 1, 2, 3, 20, 40, 1, 0.5, 0.5, 59.4]):
         clock[0] += dt
         mine = ours[step % 2]  # alternate "workers"
-        got, want = mine.allow_request(request, None), ref.allow_request(request, None)
+        got, want = mine.allow_request(request, view), ref.allow_request(request, view)
         decisions.append(got)
         assert got == want, step
         if not got:

@@ -14,7 +14,7 @@ pytestmark = pytest.mark.django_db
 
 
 def test_grid_is_the_full_product_and_idempotent(comparison):
-    devices = [DeviceFactory(comparison=comparison, name=f"MEMS {i}") for i in (1, 2)]
+    devices = [DeviceFactory.create(comparison=comparison, name=f"MEMS {i}") for i in (1, 2)]
     new = measurement_points_generate(
         comparison=comparison,
         devices=devices,
@@ -53,7 +53,7 @@ def test_grid_is_the_full_product_and_idempotent(comparison):
     ],
 )
 def test_grid_refuses_bad_lists(comparison, kwargs, message):
-    device = DeviceFactory(comparison=comparison)
+    device = DeviceFactory.create(comparison=comparison)
     args = dict(axes=["X"], frequencies_hz=[10], benches=["linear"]) | kwargs
     with pytest.raises(ValidationFailed, match=message.replace("[", r"\[").replace("]", r"\]")):
         measurement_points_generate(comparison=comparison, devices=[device], **args)
@@ -61,7 +61,7 @@ def test_grid_refuses_bad_lists(comparison, kwargs, message):
 
 
 def test_grid_refuses_device_of_another_comparison(comparison):
-    foreign = DeviceFactory(comparison=ComparisonFactory())
+    foreign = DeviceFactory.create(comparison=ComparisonFactory.create())
     with pytest.raises(ValidationFailed, match="must belong to this comparison"):
         measurement_points_generate(
             comparison=comparison,
@@ -73,7 +73,7 @@ def test_grid_refuses_device_of_another_comparison(comparison):
 
 
 def test_curvilinear_template_amplitudes_match_the_reference_data(comparison):
-    device = DeviceFactory(comparison=comparison)
+    device = DeviceFactory.create(comparison=comparison)
     comparison_apply_template(comparison=comparison, template_key="curvilinear", devices=[device])
     pts = comparison.measurement_points.filter(axis="X")
     amp = {(p.frequency_hz, p.direction): p.amplitude_m_s2 for p in pts}
@@ -94,7 +94,7 @@ def test_curvilinear_template_amplitudes_match_the_reference_data(comparison):
 
 
 def test_linear_template_and_expected_components(comparison):
-    device = DeviceFactory(comparison=comparison)
+    device = DeviceFactory.create(comparison=comparison)
     comparison_apply_template(comparison=comparison, template_key="linear", devices=[device])
     freqs = sorted(set(comparison.measurement_points.values_list("frequency_hz", flat=True)))
     assert freqs == [5.0, 10.0, 20.0]

@@ -22,8 +22,8 @@ pytestmark = pytest.mark.django_db
 def refused(**changes) -> bool:
     """Try to store a result with ``changes``; True when the database refuses it."""
     base = ResultFactory.build()
-    submission = SubmissionFactory()
-    point = MeasurementPointFactory(device__comparison=submission.participant.comparison)
+    submission = SubmissionFactory.create()
+    point = MeasurementPointFactory.create(device__comparison=submission.participant.comparison)
     fields = dict(
         submission=submission,
         measurement_point=point,
@@ -42,10 +42,10 @@ def refused(**changes) -> bool:
 
 
 def test_valid_result_is_stored_with_derived_standard_uncertainty():
-    r = ResultFactory(value=423.0, expanded_uncertainty=13.0, coverage_factor=2.0)
+    r = ResultFactory.create(value=423.0, expanded_uncertainty=13.0, coverage_factor=2.0)
     r.refresh_from_db()
     assert r.standard_uncertainty == 6.5
-    r2 = ResultFactory(value=423.0, expanded_uncertainty=9.0, coverage_factor=3.0)
+    r2 = ResultFactory.create(value=423.0, expanded_uncertainty=9.0, coverage_factor=3.0)
     r2.refresh_from_db()
     assert r2.standard_uncertainty == pytest.approx(3.0, rel=1e-15)
 
@@ -78,33 +78,33 @@ def test_result_constraint_refuses(field, bad):
 
 
 def test_one_result_per_point_per_submission_version():
-    r = ResultFactory()
+    r = ResultFactory.create()
     with pytest.raises(IntegrityError), transaction.atomic():
-        ResultFactory(submission=r.submission, measurement_point=r.measurement_point)
-    v2 = SubmissionFactory(participant=r.submission.participant, version=2)
-    ResultFactory(submission=v2, measurement_point=r.measurement_point)  # a new version may
+        ResultFactory.create(submission=r.submission, measurement_point=r.measurement_point)
+    v2 = SubmissionFactory.create(participant=r.submission.participant, version=2)
+    ResultFactory.create(submission=v2, measurement_point=r.measurement_point)  # a new version may
     assert Result.objects.filter(measurement_point=r.measurement_point).count() == 2
 
 
 def test_submission_versions_are_unique_per_participant():
-    s = SubmissionFactory()
+    s = SubmissionFactory.create()
     with pytest.raises(IntegrityError), transaction.atomic():
-        SubmissionFactory(participant=s.participant, version=1)
+        SubmissionFactory.create(participant=s.participant, version=1)
     with pytest.raises(IntegrityError), transaction.atomic():
-        SubmissionFactory(participant=s.participant, version=0)
+        SubmissionFactory.create(participant=s.participant, version=0)
     assert Submission.objects.count() == 1
 
 
 def test_measurement_point_unique_with_and_without_amplitude():
-    device = DeviceFactory()
+    device = DeviceFactory.create()
     key = dict(device=device, axis="Y", frequency_hz=8.0, bench="curvilinear", direction="radial")
-    MeasurementPointFactory(**key)
+    MeasurementPointFactory.create(**key)
     with pytest.raises(IntegrityError), transaction.atomic():
-        MeasurementPointFactory(**key)
-    MeasurementPointFactory(**key, amplitude_m_s2=5.53)
+        MeasurementPointFactory.create(**key)
+    MeasurementPointFactory.create(**key, amplitude_m_s2=5.53)
     with pytest.raises(IntegrityError), transaction.atomic():
-        MeasurementPointFactory(**key, amplitude_m_s2=5.53)
-    MeasurementPointFactory(**key, amplitude_m_s2=14.77)
+        MeasurementPointFactory.create(**key, amplitude_m_s2=5.53)
+    MeasurementPointFactory.create(**key, amplitude_m_s2=14.77)
     assert MeasurementPoint.objects.filter(device=device).count() == 3
 
 
@@ -113,25 +113,25 @@ def test_measurement_point_unique_with_and_without_amplitude():
 )
 def test_measurement_point_constraints(field, bad):
     with pytest.raises(IntegrityError), transaction.atomic():
-        MeasurementPointFactory(**{field: bad})
+        MeasurementPointFactory.create(**{field: bad})
 
 
 def test_participant_code_and_lab_unique_per_comparison():
-    p = ParticipantFactory(code="L07")
+    p = ParticipantFactory.create(code="L07")
     with pytest.raises(IntegrityError), transaction.atomic():
-        ParticipantFactory(comparison=p.comparison, code="L07")
+        ParticipantFactory.create(comparison=p.comparison, code="L07")
     with pytest.raises(IntegrityError), transaction.atomic():
-        ParticipantFactory(comparison=p.comparison, laboratory=p.laboratory, code="L08")
-    other = ComparisonFactory()
-    ParticipantFactory(comparison=other, laboratory=p.laboratory, code="L07")
+        ParticipantFactory.create(comparison=p.comparison, laboratory=p.laboratory, code="L08")
+    other = ComparisonFactory.create()
+    ParticipantFactory.create(comparison=other, laboratory=p.laboratory, code="L07")
 
 
 @pytest.mark.parametrize("field,bad", [("en_limit", 0.0), ("sigma_pt_value", -1.0)])
 def test_comparison_constraints(field, bad):
     with pytest.raises(IntegrityError), transaction.atomic():
-        ComparisonFactory(**{field: bad})
+        ComparisonFactory.create(**{field: bad})
 
 
 def test_device_nominal_must_be_positive():
     with pytest.raises(IntegrityError), transaction.atomic():
-        DeviceFactory(nominal_sensitivity=-418.0)
+        DeviceFactory.create(nominal_sensitivity=-418.0)

@@ -273,7 +273,7 @@ def test_api_docs_need_sign_in_unless_public(client, settings):
     assert refused.status_code == 403
     assert refused.json() == {"detail": "Sign in to read the API schema.", "errors": []}
     assert client.get("/api/docs/")["Location"] == "/accounts/login/?next=/api/docs/"
-    client.force_login(UserFactory())
+    client.force_login(UserFactory.create())
     assert client.get("/api/schema/?format=json").status_code == 200
     assert client.get("/api/docs/").status_code == 200
     client.logout()

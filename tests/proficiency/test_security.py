@@ -83,7 +83,7 @@ def test_hsts_and_secure_cookies_in_production_settings(client, settings):
     settings.SECURE_HSTS_SECONDS = 31536000
     settings.SECURE_HSTS_INCLUDE_SUBDOMAINS = settings.SECURE_HSTS_PRELOAD = True
     settings.SESSION_COOKIE_SECURE = settings.CSRF_COOKIE_SECURE = True
-    UserFactory(username="hana", password="a-long-passphrase-9")
+    UserFactory.create(username="hana", password="a-long-passphrase-9")
     page = client.get("/accounts/login/", secure=True)
     assert page["Strict-Transport-Security"] == "max-age=31536000; includeSubDomains; preload"
     csrf = page.cookies["csrftoken"]
@@ -103,7 +103,9 @@ def assert_csp_clean(html: str, where: str) -> None:
     """No inline script, no event-handler attribute, every <style> allowed by its hash."""
     for attrs, body in re.findall(r"<script\b([^>]*)>(.*?)</script>", html, re.S | re.I):
         assert "src=" in attrs and not body.strip(), f"inline script in {where}"
-        src = re.search(r'src="([^"]+)"', attrs).group(1)
+        found = re.search(r'src="([^"]+)"', attrs)
+        assert found is not None, f"script without src in {where}"
+        src = found.group(1)
         assert src.startswith("/static/"), f"foreign script {src} in {where}"
     handler = re.search(r"<[a-z][^>]*\son[a-z]+\s*=", html, re.I)
     assert not handler, f"event handler attribute in {where}: {handler.group(0)[:80]}"
@@ -121,7 +123,7 @@ def assert_csp_clean(html: str, where: str) -> None:
 @pytest.mark.django_db
 def test_login_locks_after_the_failure_limit_and_unlocks_after_the_cool_off(client, settings):
     assert settings.AXES_FAILURE_LIMIT == 5
-    UserFactory(username="lena", password="correct-horse-battery")
+    UserFactory.create(username="lena", password="correct-horse-battery")
     login = "/accounts/login/"
     bad = {"username": "lena", "password": "wrong-guess"}
     statuses = [client.post(login, bad).status_code for _ in range(5)]
@@ -142,7 +144,7 @@ def test_login_locks_after_the_failure_limit_and_unlocks_after_the_cool_off(clie
 
 @pytest.mark.django_db
 def test_admin_login_shares_the_lockout(client):
-    UserFactory(username="root2", password="correct-horse-battery", is_staff=True)
+    UserFactory.create(username="root2", password="correct-horse-battery", is_staff=True)
     bad = {"username": "root2", "password": "nope", "next": "/admin/"}
     assert [client.post("/admin/login/", bad).status_code for _ in range(5)][-1] == 429
     good = {"username": "root2", "password": "correct-horse-battery"}
@@ -151,7 +153,7 @@ def test_admin_login_shares_the_lockout(client):
 
 @pytest.mark.django_db
 def test_force_login_helpers_still_work_with_axes(client):
-    user = UserFactory(username="tess")
+    user = UserFactory.create(username="tess")
     client.force_login(user)
     assert client.get("/lab/").status_code == 200
 
@@ -166,7 +168,7 @@ def test_password_reset_is_throttled_per_client_address(client, settings, mailou
     assert settings.PASSWORD_RESET_LIMIT == 5
     assert settings.PASSWORD_RESET_WINDOW.total_seconds() == 3600
     for i in range(3):
-        UserFactory(username=f"reset{i}", email=f"reset{i}@lab.example")
+        UserFactory.create(username=f"reset{i}", email=f"reset{i}@lab.example")
     emails = [f"reset{i % 3}@lab.example" if i < 3 else f"nobody{i}@lab.example" for i in range(7)]
     statuses = [client.post(RESET, {"email": e}).status_code for e in emails]
     assert statuses == [302, 302, 302, 302, 302, 429, 429]
@@ -183,7 +185,7 @@ def test_password_reset_is_throttled_per_client_address(client, settings, mailou
 
 @pytest.mark.django_db
 def test_password_reset_is_throttled_per_email_address(client, settings, mailoutbox):
-    UserFactory(username="target", email="target@lab.example")
+    UserFactory.create(username="target", email="target@lab.example")
     addresses = [f"192.0.2.{i}" for i in range(1, 8)]
     statuses = [
         client.post(RESET, {"email": "Target@Lab.example "}, REMOTE_ADDR=a).status_code
@@ -215,7 +217,8 @@ def api_views():
             if isinstance(p, URLResolver):
                 yield from walk(p.url_patterns, prefix + str(p.pattern))
             elif isinstance(p, URLPattern) and (prefix + str(p.pattern)).startswith("api/v1/"):
-                yield prefix + str(p.pattern), p.callback.cls
+                # as_view() sets cls on the view function it returns
+                yield prefix + str(p.pattern), p.callback.cls  # type: ignore[attr-defined]
 
     return list(walk(get_resolver().url_patterns, ""))
 
@@ -388,7 +391,7 @@ def test_weak_passwords_are_refused(password, reason):
 
 @pytest.mark.django_db
 def test_password_change_page_applies_the_rules(client):
-    user = UserFactory(username="vera", password="old-secret-passphrase")
+    user = UserFactory.create(username="vera", password="old-secret-passphrase")
     client.force_login(user)
     response = client.post(
         "/accounts/password_change/",
@@ -424,7 +427,7 @@ def test_hostile_names_are_escaped_in_every_page_and_absent_from_reports(analyse
 
     participant = evil_names(analysed)
     code = analysed.comparison.code
-    client.force_login(UserFactory(username="evil-coord", is_superuser=True, is_staff=True))
+    client.force_login(UserFactory.create(username="evil-coord", is_superuser=True, is_staff=True))
     coordinator_pages = [
         "/coordinator/", f"/coordinator/{code}/", f"/coordinator/{code}/review/",
         f"/coordinator/{code}/results/", f"/coordinator/{code}/scores/",
@@ -462,7 +465,7 @@ def test_hostile_names_are_escaped_in_every_page_and_absent_from_reports(analyse
 @pytest.mark.django_db(transaction=True)
 def test_scores_download_keeps_negative_scores_numeric_and_escapes_names(analysed, client):  # noqa: F811
     analysed.comparison.devices.filter(name="MEMS 1").update(name=FORMULA)
-    client.force_login(UserFactory(username="dl-coord", is_superuser=True, is_staff=True))
+    client.force_login(UserFactory.create(username="dl-coord", is_superuser=True, is_staff=True))
     code = analysed.comparison.code
     response = client.get(f"/coordinator/{code}/scores.csv")
     assert response.status_code == 200

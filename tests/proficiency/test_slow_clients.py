@@ -87,7 +87,7 @@ def gunicorn(log: Path | None = None, **extra: str) -> Iterator[int]:
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
-        if log:
+        if not isinstance(out, int):  # the log file, not DEVNULL
             out.close()
 
 

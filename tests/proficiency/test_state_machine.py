@@ -30,8 +30,8 @@ def test_transition_table_is_the_documented_life_cycle():
 
 
 def with_points(status: str) -> Comparison:
-    c = ComparisonFactory(status=status)
-    MeasurementPointFactory(device__comparison=c)
+    c = ComparisonFactory.create(status=status)
+    MeasurementPointFactory.create(device__comparison=c)
     return c
 
 
@@ -68,7 +68,7 @@ def test_unknown_status_refused():
 
 
 def test_cannot_open_without_measurement_points():
-    c = ComparisonFactory(status="draft")
+    c = ComparisonFactory.create(status="draft")
     with pytest.raises(InvalidTransition, match="no measurement points"):
         comparison_transition(comparison=c, to="open")
     c.refresh_from_db()
@@ -85,7 +85,7 @@ def test_submission_table():
 
 @pytest.mark.parametrize("frm,to", list(itertools.product(Submission.Status.values, repeat=2)))
 def test_submission_transitions(frm, to):
-    s = SubmissionFactory(status=frm)
+    s = SubmissionFactory.create(status=frm)
     if (frm, to) in SUB_LEGAL:
         submission_transition(submission=s, to=to, message="checked")
         s.refresh_from_db()

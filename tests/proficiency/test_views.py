@@ -9,7 +9,7 @@ pytestmark = pytest.mark.django_db
 
 
 def test_anonymous_sees_no_comparison(client):
-    ComparisonFactory(code="SECRET-ROUND")
+    ComparisonFactory.create(code="SECRET-ROUND")
     response = client.get("/")
     assert response.status_code == 200
     assert b"SECRET-ROUND" not in response.content
@@ -17,9 +17,9 @@ def test_anonymous_sees_no_comparison(client):
 
 
 def test_lab_member_sees_only_its_comparisons(client):
-    mine = ComparisonFactory(code="MINE-01")
-    ComparisonFactory(code="OTHER-01")
-    member = MembershipFactory()
+    mine = ComparisonFactory.create(code="MINE-01")
+    ComparisonFactory.create(code="OTHER-01")
+    member = MembershipFactory.create()
     participant_add(comparison=mine, laboratory=member.laboratory)
     client.force_login(member.user)
     body = client.get("/").content
@@ -27,9 +27,9 @@ def test_lab_member_sees_only_its_comparisons(client):
 
 
 def test_coordinator_sees_coordinated(client):
-    coordinated = ComparisonFactory(code="COORD-01")
-    ComparisonFactory(code="NOPE-01")
-    user = UserFactory()
+    coordinated = ComparisonFactory.create(code="COORD-01")
+    ComparisonFactory.create(code="NOPE-01")
+    user = UserFactory.create()
     coordinated.coordinators.add(user)
     client.force_login(user)
     body = client.get("/").content

@@ -73,7 +73,7 @@ def test_the_admin_back_door_of_the_attack_is_closed(world):
 
 
 def test_the_admin_login_does_not_let_staff_in():
-    user = UserFactory(username="staffer", is_staff=True)
+    user = UserFactory.create(username="staffer", is_staff=True)
     user.set_password("a long staff password")
     user.save()
     _all_permissions(user)

@@ -72,21 +72,21 @@ def _client(key):
 
 @pytest.fixture
 def round_(django_capture_on_commit_callbacks):
-    comparison = ComparisonFactory(
+    comparison = ComparisonFactory.create(
         code=CODE, status=ComparisonStatus.OPEN,
         assigned_value_method=AssignedValueMethod.WEIGHTED_MEAN,
         sigma_pt_mode=SigmaPtMode.RELATIVE, sigma_pt_value=1.0,
         authorised_by_name="Dana Quality", authorised_by_role="Quality manager",
     )  # fmt: skip
-    device = DeviceFactory(comparison=comparison, name="MEMS 1", nominal_sensitivity=420.0)
+    device = DeviceFactory.create(comparison=comparison, name="MEMS 1", nominal_sensitivity=420.0)
     points = [
-        MeasurementPointFactory(device=device, axis=a, frequency_hz=f)
+        MeasurementPointFactory.create(device=device, axis=a, frequency_hz=f)
         for a in AXES
         for f in FREQUENCIES
     ]
     keys = {}
     for i, code in enumerate(("SWA", "SWB", "SWC")):
-        lab = LaboratoryFactory(name=f"Sweep lab {code}")
+        lab = LaboratoryFactory.create(name=f"Sweep lab {code}")
         Participant.objects.create(comparison=comparison, laboratory=lab, code=code)
         keys[code] = api_key_create(laboratory=lab, name="soft", user=None)[1]
         if code != "SWA":

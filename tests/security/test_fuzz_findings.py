@@ -82,7 +82,7 @@ def test_lost_database_connection_is_a_clear_503(kind):
         psycopg.OperationalError("terminating connection due to administrator command")
     )  # fmt: skip
     response = api_exception_handler(exc, {})
-    assert response.status_code == 503
+    assert response is not None and response.status_code == 503
     assert response.data["detail"].startswith("The database connection failed")
     assert "nothing was stored half-way" in response.data["detail"]
 

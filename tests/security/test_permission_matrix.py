@@ -29,7 +29,7 @@ import pytest
 from django.conf import settings
 from django.core.cache import caches
 from django.db import transaction
-from django.http import HttpResponseBase
+from django.http import HttpResponse, HttpResponseBase
 from django.test import Client
 from django.urls import reverse
 from rest_framework.views import APIView
@@ -82,6 +82,7 @@ def _admin_url(route: Route, world: World) -> str:
 def _body(response: HttpResponseBase) -> bytes:
     if response.streaming:
         return b"".join(response.streaming_content)  # type: ignore[attr-defined]
+    assert isinstance(response, HttpResponse)  # not streaming
     return response.content
 
 
@@ -89,7 +90,8 @@ def _request(persona: Client, method: str, url: str, api: bool) -> HttpResponseB
     for cache in caches.all():  # throttling counts requests; this test makes many
         cache.clear()
     # A copy of the persona's client: a logout or a new session cookie stays in the copy.
-    client = Client(raise_request_exception=False, **persona.defaults)
+    client = Client(raise_request_exception=False)
+    client.defaults.update(persona.defaults)
     client.cookies = copy.deepcopy(persona.cookies)
     with transaction.atomic():
         if method == "GET":
@@ -150,7 +152,9 @@ def _expected(route: Route, method: str, persona: str) -> set[int] | None:
 
 def _judge(route: Route, method: str, persona: str, response: HttpResponseBase) -> list[str]:
     """What is wrong with one response: status, where a redirect goes, leaks."""
-    status, where = response.status_code, f"{method} {response.request['PATH_INFO']} as {persona}"
+    # the test client sets request on the responses it returns
+    path = response.request["PATH_INFO"]  # type: ignore[attr-defined]
+    status, where = response.status_code, f"{method} {path} as {persona}"
     problems = []
     expected = _expected(route, method, persona)
     if not RECORD and (expected is None or status not in expected):

@@ -100,10 +100,10 @@ class World:
 
 
 def _lab(name: str, *members: tuple[str, str]) -> tuple[Laboratory, dict[str, Any]]:
-    lab = LaboratoryFactory(name=name)
+    lab = LaboratoryFactory.create(name=name)
     users = {}
     for username, role in members:
-        users[username] = UserFactory(username=username)
+        users[username] = UserFactory.create(username=username)
         Membership.objects.create(user=users[username], laboratory=lab, role=role)
     return lab, users
 
@@ -125,7 +125,7 @@ def _submission(participant: Participant, version: int, status: str, value: floa
 
 
 def _coordinator(username: str, comparison: Comparison) -> Any:
-    user = UserFactory(username=username)
+    user = UserFactory.create(username=username)
     user.user_permissions.add(Permission.objects.get(codename="add_comparison"))
     comparison.coordinators.add(user)
     return user
@@ -137,18 +137,18 @@ def build_world(capture_on_commit: Any) -> World:
     lab_a, users = _lab(LAB_A_NAME, ("a_staff", "staff"), ("a_manager", "manager"))
     lab_b, users_b = _lab("Bravo Calibration", ("b_staff", "staff"))
     lab_c, _ = _lab("Charlie Metrology")
-    c1 = ComparisonFactory(
+    c1 = ComparisonFactory.create(
         code=C1, status=ComparisonStatus.CLOSED,
         assigned_value_method=AssignedValueMethod.WEIGHTED_MEAN,
     )  # fmt: skip
-    c2 = ComparisonFactory(code=C2, status=ComparisonStatus.OPEN)
+    c2 = ComparisonFactory.create(code=C2, status=ComparisonStatus.OPEN)
     users |= users_b
     users["coord1"] = _coordinator("coord1", c1)
     users["coord2"] = _coordinator("coord2", c2)
-    users["superuser"] = UserFactory(username="root", is_superuser=True, is_staff=True)
-    device = DeviceFactory(comparison=c1, nominal_sensitivity=123.0, unit="mV/(m/s^2)")
-    points = [MeasurementPointFactory(device=device, frequency_hz=f) for f in (10.0, 80.0)]
-    MeasurementPointFactory(device=DeviceFactory(comparison=c2), frequency_hz=10.0)
+    users["superuser"] = UserFactory.create(username="root", is_superuser=True, is_staff=True)
+    device = DeviceFactory.create(comparison=c1, nominal_sensitivity=123.0, unit="mV/(m/s^2)")
+    points = [MeasurementPointFactory.create(device=device, frequency_hz=f) for f in (10.0, 80.0)]
+    MeasurementPointFactory.create(device=DeviceFactory.create(comparison=c2), frequency_hz=10.0)
     part_a = Participant.objects.create(comparison=c1, laboratory=lab_a, code=LAB_A_CODE)
     part_b = Participant.objects.create(comparison=c1, laboratory=lab_b, code="KB2")
     part_c = Participant.objects.create(comparison=c1, laboratory=lab_c, code="KC3")

@@ -17,6 +17,7 @@ correlation of E.12, the repeatability plot (E.13, 10.6) and ordinal data (E.15,
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import pytest
@@ -100,7 +101,7 @@ def printed(computed: float, value: float, decimals: int) -> None:
     assert abs(computed - value) <= 0.5 * 10.0**-decimals + 1e-12, (computed, value)
 
 
-def one(x: list[float]) -> tuple[np.ndarray, Groups]:
+def one(x: Sequence[float]) -> tuple[np.ndarray, Groups]:
     return np.asarray(x, dtype=float), Groups.from_index([0] * len(x))
 
 
@@ -157,7 +158,7 @@ def test_e2_sigma_pt_and_stability() -> None:
     mean = np.mean(E2)
     sigma = sigma_pt_prescribed(15.0, 1, x_pt=mean, relative=True)[0]
     printed(sigma, 0.02807, 5)
-    printed(np.mean(E2_STABILITY), 0.19375, 5)
+    printed(float(np.mean(E2_STABILITY)), 0.19375, 5)
     hom, stab = np.ravel(E2), np.ravel(E2_STABILITY)
     tiny = 1e-12  # no uncertainties in the example: only the 0.3 sigma_pt criterion decides
     st = stability_check(
@@ -260,7 +261,15 @@ def test_table_b1_factors(g: int) -> None:
 @pytest.mark.parametrize("estimator", [algorithm_a, q_hampel, median_niqr])
 def test_the_examples_vectorised_together_give_the_same_numbers(estimator) -> None:
     """E.1, E.3, E.7, E.12 and E.13 in one call, as a round's points are computed."""
-    sets = [E1_IGNORED, E1_DELETED, E1_HALF, E3, [row[0] for row in E4], E12_A, E13_AVG]
+    sets: list[Sequence[float]] = [
+        E1_IGNORED,
+        E1_DELETED,
+        E1_HALF,
+        E3,
+        [row[0] for row in E4],
+        E12_A,
+        E13_AVG,
+    ]
     x = np.concatenate([np.asarray(s, dtype=float) for s in sets])
     idx = np.repeat(np.arange(len(sets)), [len(s) for s in sets])
     together = estimator(x, Groups.from_index(idx))

@@ -61,7 +61,9 @@ def test_cells_without_repeats_take_part_in_h_only() -> None:
         (([1.0], [0.1], [3, 3], [0]), "same length"),
     ],
 )
-def test_bad_summaries(args: tuple, message: str) -> None:
+def test_bad_summaries(
+    args: tuple[list[float], list[float], list[float], list[int]], message: str
+) -> None:
     size = len(args[0])
     with pytest.raises(CoreInputError, match=message):
         c.cells_from_summaries(*args, Groups.from_index(np.zeros(size, dtype=int)))

@@ -104,7 +104,7 @@ def test_a_batch_delivered_twice_issues_each_report_once(monkeypatch, analysed):
     # a report of the batch already issued (e.g. by a batch lost half-way through)
     done = report_issue_once(run_id=analysed.pk, kind="participant", participant_id=batch[1])
     first = report_issue_batch_task(analysed.pk, batch)
-    assert first[1] == done.pk and len(set(first)) == 5
+    assert done is not None and first[1] == done.pk and len(set(first)) == 5
     again = report_issue_batch_task(analysed.pk, batch)  # redelivered: nothing new
     assert again == first
     rows = Report.objects.filter(comparison=analysed.comparison)
@@ -126,6 +126,7 @@ def test_a_batch_refuses_a_participant_of_another_comparison(monkeypatch, analys
     fake_pdf(monkeypatch)
     other = make_round("OTHER", 2, 1)
     stranger = other.participants.first()
+    assert stranger is not None
     with pytest.raises(ValidationFailed):
         report_issue_batch(run_id=analysed.pk, participant_ids=[stranger.pk])
     assert Report.objects.count() == 0
@@ -137,6 +138,7 @@ def test_a_new_run_supersedes_through_a_batch(monkeypatch, analysed):
     old = report_issue_batch(run_id=analysed.pk, participant_ids=[part.pk])
     analysis_run_start(comparison=analysed.comparison, user=None)
     new_run = current_run(analysed.comparison)
+    assert new_run is not None
     new = report_issue_batch(run_id=new_run.pk, participant_ids=[part.pk])
     rows = dict(Report.objects.values_list("pk", "superseded"))
     assert rows == {old[0]: True, new[0]: False}
@@ -152,6 +154,7 @@ def test_a_batch_of_an_older_run_never_supersedes_a_newer_report(monkeypatch, an
     part = analysed.comparison.participants.order_by("code").first()
     analysis_run_start(comparison=analysed.comparison, user=None)
     new_run = current_run(analysed.comparison)
+    assert new_run is not None
     (new,) = report_issue_batch(run_id=new_run.pk, participant_ids=[part.pk])
     monkeypatch.setattr("analysis.reports.services.current_run", lambda c: analysed)
     assert report_issue_batch(run_id=analysed.pk, participant_ids=[part.pk]) == [new]
@@ -207,7 +210,12 @@ def test_shared_data_is_read_once_per_run(monkeypatch, analysed, large):
     fake_pdf(monkeypatch)
     builds = []
     real = assemble._build_context
-    monkeypatch.setattr(assemble, "_build_context", lambda *a: builds.append(1) or real(*a))
+
+    def counted(*a):
+        builds.append(1)
+        return real(*a)
+
+    monkeypatch.setattr(assemble, "_build_context", counted)
     _, batches = report_batches(analysed.comparison, size=4)
     for batch in batches:
         report_issue_batch(run_id=analysed.pk, participant_ids=batch)
@@ -217,6 +225,7 @@ def test_shared_data_is_read_once_per_run(monkeypatch, analysed, large):
 def batch_queries(comparison: Comparison, size: int) -> tuple[int, int]:
     """Queries of a cold batch (the run's context built) and of a warm one."""
     run = current_run(comparison)
+    assert run is not None
     ids = list(comparison.participants.order_by("code").values_list("pk", flat=True))
     counts = []
     for batch in (ids[:size], ids[size : 2 * size]):
@@ -262,11 +271,12 @@ def point_charts_built(monkeypatch) -> list[str]:
     """The titles of the point charts drawn from now on (the chart cache emptied)."""
     built: list[str] = []
     real = charts.PointChart.__init__
-    monkeypatch.setattr(
-        charts.PointChart,
-        "__init__",
-        lambda self, *a, **k: built.append(k["title"]) or real(self, *a, **k),
-    )
+
+    def counted(self, *a, **k):
+        built.append(k["title"])
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(charts.PointChart, "__init__", counted)
     charts.point_chart.cache_clear()
     return built
 
@@ -279,9 +289,11 @@ def test_a_large_rounds_first_batch_builds_every_point_chart(monkeypatch, large)
     c = make_round("CHARTS", 8, 3)
     ids = list(c.participants.order_by("code").values_list("pk", flat=True))
     built = point_charts_built(monkeypatch)
-    report_issue_batch(run_id=current_run(c).pk, participant_ids=ids[:2])
+    run = current_run(c)
+    assert run is not None
+    report_issue_batch(run_id=run.pk, participant_ids=ids[:2])
     assert sorted(built) == [f"MEMS 0, X, {f} Hz, linear vertical" for f in (10, 20, 30)]
-    report_issue_batch(run_id=current_run(c).pk, participant_ids=ids[2:5])
+    report_issue_batch(run_id=run.pk, participant_ids=ids[2:5])
     assert len(built) == 3
 
 
@@ -290,5 +302,7 @@ def test_a_round_with_fewer_participants_than_points_draws_charts_as_needed(monk
     c = make_round("FEW", 4, 5)
     ids = list(c.participants.order_by("code").values_list("pk", flat=True))
     built = point_charts_built(monkeypatch)
-    report_issue_batch(run_id=current_run(c).pk, participant_ids=ids)
+    run = current_run(c)
+    assert run is not None
+    report_issue_batch(run_id=run.pk, participant_ids=ids)
     assert built == []

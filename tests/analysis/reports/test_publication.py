@@ -168,7 +168,7 @@ def test_preliminary_issue_in_flight_during_publication_never_ends_up_current(
         return f"%PDF-1.4 {data.report_number} {data.status}".encode()
 
     monkeypatch.setattr("analysis.reports.services.render_report", render)
-    errors = []
+    errors: list[BaseException] = []
     issuing = _in_thread(
         lambda: report_issue(comparison=comparison, kind="participant", participant=one), errors
     )
@@ -215,7 +215,7 @@ def test_batch_started_before_publication_issues_final_reports_after_it(
         return f"%PDF-1.4 {data.report_number} {data.status}".encode()
 
     monkeypatch.setattr("analysis.reports.services.render_report", render)
-    errors = []
+    errors: list[BaseException] = []
     batch = _in_thread(lambda: report_issue_batch(run_id=analysed.pk, participant_ids=ids), errors)
     publishing = None
     try:

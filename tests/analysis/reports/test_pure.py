@@ -41,6 +41,7 @@ def test_own_result_is_drawn_in_pink_over_the_shared_chart():
     )  # fmt: skip
     mark = chart.overlay("L22")
     assert chart.overlay(None) is None and chart.overlay("nobody") is None
+    assert mark is not None
     ((x, y),) = mark.dots
     assert (x, y) == pytest.approx(chart.to_px.transform((1, 420.0)))
     bottom, top = mark.lines[0][1], mark.lines[0][3]
@@ -52,7 +53,11 @@ def test_own_result_is_drawn_in_pink_over_the_shared_chart():
     from pypdf import PdfReader
 
     pages = PdfReader(BytesIO(render_report(data))).pages
-    streams = b"".join(page.get_contents().get_data() for page in pages)
+    streams = b""
+    for page in pages:
+        contents = page.get_contents()
+        assert contents is not None
+        streams += contents.get_data()
     assert b".839216 .2 .517647 RG" in streams  # #d63384 strokes the overlay
 
 

@@ -75,7 +75,12 @@ def test_shared_cell_styles_draw_what_the_style_commands_drew():
 def test_repeated_cells_are_formatted_once_per_document(monkeypatch):
     calls = []
     real = PDFTextObject._textOut
-    monkeypatch.setattr(PDFTextObject, "_textOut", lambda s, t, *a: calls.append(t) or real(s, t))
+
+    def counted(s, t, *a):
+        calls.append(t)
+        return real(s, t)
+
+    monkeypatch.setattr(PDFTextObject, "_textOut", counted)
     remembered = pdf_of(sections.table(ROWS, WIDTHS, OWN, BAD))
     distinct = {c for row in ROWS for c in row if c}
     assert len(calls) < 2 * len(distinct) < sum(bool(c) for row in ROWS for c in row)
@@ -121,9 +126,12 @@ def test_reports_sharing_a_rounds_figures_reuse_its_charts(monkeypatch):
     calls = []
     for name in ("point_chart", "en_chart"):
         real = getattr(charts, name)
-        monkeypatch.setattr(charts, name, lambda *a, _r=real, _n=name, **k: (
-            calls.append(_n) or _r(*a, **k)
-        ))  # fmt: skip
+
+        def counted(*a, _r=real, _n=name, **k):
+            calls.append(_n)
+            return _r(*a, **k)
+
+        monkeypatch.setattr(charts, name, counted)
     other = render_report(theirs)
     assert calls == []
     assert other == render_report(dataclasses.replace(theirs, stats=None))  # same bytes

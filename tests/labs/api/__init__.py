@@ -11,11 +11,13 @@ from __future__ import annotations
 import datetime as dt
 from dataclasses import dataclass, field
 
+from django.contrib.auth.models import User
 from django.utils import timezone
 from rest_framework.test import APIClient
 
-from labs.models import Membership
+from labs.models import Laboratory, Membership, Participant
 from labs.services import api_key_create, api_key_revoke, submission_from_records
+from proficiency.models import Comparison
 from proficiency.services import measurement_points_generate
 from tests.factories import (
     ComparisonFactory,
@@ -60,14 +62,14 @@ def as_csv(records: list[dict]) -> bytes:
 
 
 def open_comparison(code: str, coordinator=None, **kwargs):
-    comparison = ComparisonFactory(
+    comparison = ComparisonFactory.create(
         code=code,
         status="open",
         submission_deadline=timezone.now() + dt.timedelta(days=7),
         protocol="custom",
         **kwargs,
     )
-    device = DeviceFactory(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
+    device = DeviceFactory.create(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
     measurement_points_generate(
         comparison=comparison, devices=[device], axes=["X", "Y"], frequencies_hz=[5, 10],
         benches=["linear"],
@@ -79,8 +81,17 @@ def open_comparison(code: str, coordinator=None, **kwargs):
 
 @dataclass
 class World:
-    users: dict = field(default_factory=dict)
-    keys: dict = field(default_factory=dict)
+    users: dict[str, User] = field(default_factory=dict)
+    keys: dict[str, str] = field(default_factory=dict)
+    # set by build_world
+    lab_a: Laboratory = field(init=False)
+    lab_b: Laboratory = field(init=False)
+    cmp: Comparison = field(init=False)
+    other: Comparison = field(init=False)
+    shared: Comparison = field(init=False)
+    part_a: Participant = field(init=False)
+    shared_a: Participant = field(init=False)
+    shared_b: Participant = field(init=False)
 
     def client(self, persona: str) -> APIClient:
         client = APIClient()
@@ -94,24 +105,24 @@ class World:
 
 def build_world() -> World:
     w = World()
-    w.lab_a = LaboratoryFactory(name=LAB_A_NAME)
-    w.lab_b = LaboratoryFactory(name=LAB_B_NAME)
-    w.users["staff_a"] = MembershipFactory(laboratory=w.lab_a, user__username="alice").user
-    w.users["manager_a"] = MembershipFactory(
+    w.lab_a = LaboratoryFactory.create(name=LAB_A_NAME)
+    w.lab_b = LaboratoryFactory.create(name=LAB_B_NAME)
+    w.users["staff_a"] = MembershipFactory.create(laboratory=w.lab_a, user__username="alice").user
+    w.users["manager_a"] = MembershipFactory.create(
         laboratory=w.lab_a, user__username="mario", role=Membership.Role.MANAGER
     ).user
-    w.users["staff_b"] = MembershipFactory(laboratory=w.lab_b, user__username="bob").user
-    w.users["coord"] = UserFactory(username="carla")
-    w.users["coord_other"] = UserFactory(username="otto")
-    w.users["admin"] = UserFactory(username="root", is_superuser=True, is_staff=True)
+    w.users["staff_b"] = MembershipFactory.create(laboratory=w.lab_b, user__username="bob").user
+    w.users["coord"] = UserFactory.create(username="carla")
+    w.users["coord_other"] = UserFactory.create(username="otto")
+    w.users["admin"] = UserFactory.create(username="root", is_superuser=True, is_staff=True)
 
     w.cmp = open_comparison("IMU-A-01", coordinator=w.users["coord"])
-    w.part_a = ParticipantFactory(comparison=w.cmp, laboratory=w.lab_a, code="L17")
+    w.part_a = ParticipantFactory.create(comparison=w.cmp, laboratory=w.lab_a, code="L17")
     w.other = open_comparison("IMU-B-01", coordinator=w.users["coord_other"])
-    ParticipantFactory(comparison=w.other, laboratory=w.lab_b, code="L05")
+    ParticipantFactory.create(comparison=w.other, laboratory=w.lab_b, code="L05")
     w.shared = open_comparison("IMU-AB-01", coordinator=w.users["coord"])
-    w.shared_a = ParticipantFactory(comparison=w.shared, laboratory=w.lab_a, code="L71")
-    w.shared_b = ParticipantFactory(comparison=w.shared, laboratory=w.lab_b, code="L32")
+    w.shared_a = ParticipantFactory.create(comparison=w.shared, laboratory=w.lab_a, code="L71")
+    w.shared_b = ParticipantFactory.create(comparison=w.shared, laboratory=w.lab_b, code="L32")
 
     value, u = A_VALUES
     for participant in (w.part_a, w.shared_a):

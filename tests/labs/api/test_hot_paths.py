@@ -84,9 +84,9 @@ def test_measurands_and_comparisons_equal_the_serializer(world):
     assert len(qs) == 4
     expected = s.MeasurementPointSerializer(qs, many=True).data
     assert render(MeasurandList.rendering.data(qs)) == render(expected)
-    qs = Comparison.objects.order_by("-created_at", "code")
-    expected = s.ComparisonSerializer(qs, many=True).data
-    assert render(ComparisonList.rendering.data(qs)) == render(expected)
+    comparisons = Comparison.objects.order_by("-created_at", "code")
+    expected = s.ComparisonSerializer(comparisons, many=True).data
+    assert render(ComparisonList.rendering.data(comparisons)) == render(expected)
 
 
 @pytest.mark.parametrize("coordinator", [False, True])
@@ -117,8 +117,8 @@ def test_api_answers_are_the_serializer_answers(world):
     expected = s.SubmissionDetailSerializer(sub, context={"results": submission_results(sub)})
     assert body == render(expected.data)
     body = client.get(f"/api/v1/comparisons/{code}/").content
-    expected = s.ComparisonDetailSerializer(access.comparison, context={"access": access})
-    assert body == render(expected.data)
+    detail = s.ComparisonDetailSerializer(access.comparison, context={"access": access})
+    assert body == render(detail.data)
     page = client.get(f"/api/v1/comparisons/{code}/submissions/").json()
     assert page["count"] == 3 and page["next"] is None and page["previous"] is None
     assert [r["version"] for r in page["results"]] == [3, 2, 1]
@@ -211,7 +211,7 @@ def test_participant_lookup_values(world):
     c, sc = found.comparison, stored.comparison
     assert (c.pk, c.code, c.status, c.submission_deadline, c.created_at) == (
         sc.pk, sc.code, sc.status, sc.submission_deadline, sc.created_at)  # fmt: skip
-    assert c.submission_deadline.tzinfo is not None
+    assert c.submission_deadline is not None and c.submission_deadline.tzinfo is not None
     assert found.laboratory is world.lab_a
     with pytest.raises(NotVisible):
         participant_for_lab(code=world.other.code, laboratory=world.lab_a)

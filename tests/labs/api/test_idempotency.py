@@ -163,7 +163,7 @@ def test_the_web_path_stores_identical_results_once(world):
         )
         for _ in range(2)
     )
-    assert one.pk == two.pk and two.replayed and not one.replayed
+    assert one.pk == two.pk and two.replayed and not one.replayed  # type: ignore[attr-defined]  # set on the answer by submission_from_records
     drafts = [
         submission_from_records(
             participant=world.part_a, records=rows(419.5, axes=("X",)), source="web",

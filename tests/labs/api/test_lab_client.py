@@ -15,6 +15,7 @@ EXAMPLE = Path(__file__).resolve().parents[3] / "examples" / "lab_client.py"
 @pytest.fixture
 def lab_client():
     spec = importlib.util.spec_from_file_location("lab_client", EXAMPLE)
+    assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module

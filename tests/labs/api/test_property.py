@@ -29,7 +29,7 @@ json_values = st.recursive(
     max_leaves=6,
 )
 # A field set to a value that can never be valid for this comparison.
-BAD = {
+BAD: dict[str, list[object]] = {
     "sensitivity": [-1, 0, "nan", "inf", "abc", "", None, [], {}],
     "expanded_uncertainty": [0, -3, "-2%", "abc", "", None],
     "coverage_factor": [0, -1, "k", "nan"],

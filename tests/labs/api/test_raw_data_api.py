@@ -5,10 +5,11 @@ from __future__ import annotations
 import math
 
 import pytest
+from django.contrib.auth.models import User
 from django.core.files.uploadedfile import SimpleUploadedFile
 from rest_framework.test import APIClient
 
-from labs.models import Membership, RawFile, RawRecomputation, RawRecord
+from labs.models import Membership, Participant, RawFile, RawRecomputation, RawRecord
 from labs.services import api_key_create
 from proficiency.services import measurement_points_generate
 from tests.factories import (
@@ -33,6 +34,11 @@ CURV_POINT = {**LINEAR_POINT, "bench": "curvilinear", "direction": "tangential"}
 
 
 class World:
+    users: dict[str, User]
+    part_a: Participant
+    part_b: Participant
+    key_a: str
+
     def client(self, persona: str) -> APIClient:
         client = APIClient()
         if persona == "key_a":
@@ -45,25 +51,28 @@ class World:
 @pytest.fixture
 def world():
     w = World()
-    lab_a, lab_b = LaboratoryFactory(name="Alpha Raw Lab"), LaboratoryFactory(name="Bravo")
+    lab_a, lab_b = (
+        LaboratoryFactory.create(name="Alpha Raw Lab"),
+        LaboratoryFactory.create(name="Bravo"),
+    )
     w.users = {
-        "staff_a": MembershipFactory(laboratory=lab_a, role=Membership.Role.STAFF).user,
-        "staff_b": MembershipFactory(laboratory=lab_b).user,
-        "coord": UserFactory(username="coord-raw"),
+        "staff_a": MembershipFactory.create(laboratory=lab_a, role=Membership.Role.STAFF).user,
+        "staff_b": MembershipFactory.create(laboratory=lab_b).user,
+        "coord": UserFactory.create(username="coord-raw"),
     }
-    comparison = ComparisonFactory(code=CODE, status="closed", protocol="custom")
+    comparison = ComparisonFactory.create(code=CODE, status="closed", protocol="custom")
     comparison.coordinators.add(w.users["coord"])
-    device = DeviceFactory(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
+    device = DeviceFactory.create(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
     points = measurement_points_generate(
         comparison=comparison, devices=[device], axes=["X", "Y"], frequencies_hz=[10],
         benches=["linear", "curvilinear"],
     )  # fmt: skip
-    w.part_a = ParticipantFactory(comparison=comparison, laboratory=lab_a, code="R17")
-    w.part_b = ParticipantFactory(comparison=comparison, laboratory=lab_b, code="R42")
+    w.part_a = ParticipantFactory.create(comparison=comparison, laboratory=lab_a, code="R17")
+    w.part_b = ParticipantFactory.create(comparison=comparison, laboratory=lab_b, code="R42")
     for part in (w.part_a, w.part_b):
-        sub = SubmissionFactory(participant=part, version=1, status="accepted")
+        sub = SubmissionFactory.create(participant=part, version=1, status="accepted")
         for p in points:
-            ResultFactory(
+            ResultFactory.create(
                 submission=sub, measurement_point=p, value=REPORTED,
                 expanded_uncertainty=REPORTED_U, coverage_factor=2.0, unit="D/(m/s^2)",
             )  # fmt: skip
@@ -97,6 +106,7 @@ def test_upload_recomputes_the_known_truth_and_en(world, django_capture_on_commi
     assert row.fs_hz == pytest.approx(1663.7, abs=0.01)
     assert row.reported_value == REPORTED and row.reported_expanded_uncertainty == REPORTED_U
     # En by hand from the stored values
+    assert row.sensitivity is not None and row.expanded_uncertainty is not None
     expected = (REPORTED - row.sensitivity) / math.sqrt(REPORTED_U**2 + row.expanded_uncertainty**2)
     assert row.en == pytest.approx(expected, rel=1e-12)
     assert row.software_version and row.parameters["data_sha256"] == row.record.data_file.sha256

@@ -12,6 +12,7 @@ def test_csv_with_time_column_and_sidecar_metadata():
     rec = read_csv(b"t_s,x,ref\n0,1,0.5\n0.001,-2,0.25\n0.002,3,0\n", "a.csv", {"bench": "linear"})
     assert rec.channels == ("x", "ref")
     np.testing.assert_array_equal(rec.data, [[1, -2, 3], [0.5, 0.25, 0]])
+    assert rec.t_s is not None
     np.testing.assert_allclose(rec.t_s, [0, 0.001, 0.002])
     assert rec.sampling_rate() == (pytest.approx(1000.0), False)
     assert rec.meta["bench"] == "linear" and rec.clipped == {}

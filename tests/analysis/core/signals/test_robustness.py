@@ -14,7 +14,9 @@ def tone(n, f=5.0, a=1.0, phase=0.0):
     return a * np.cos(2 * np.pi * f * np.arange(n) / FS + phase)
 
 
-def zones(leak_db=-26.0, n=21_420, seed=0, sr_gain=1.0):
+def zones(
+    leak_db: float = -26.0, n: int = 21_420, seed: int = 0, sr_gain: float = 1.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Excited X; Y carries the same sine attenuated by leak_db; Z only its noise floor."""
     rng = np.random.default_rng(seed)
     floor = rng.normal(0, 1e-3, (3, 3 * n))
