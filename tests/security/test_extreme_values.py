@@ -109,8 +109,8 @@ def _with(field: str, text: str, point) -> dict:
     else:
         row[field] = text
     if field in PARTNER:
-        partner, value = PARTNER[field]
-        row[partner] = value
+        partner, given = PARTNER[field]
+        row[partner] = given
     return row
 
 
