@@ -42,7 +42,7 @@ class SlowClientThreadWorker(ThreadWorker):
         self._wrap_future(future, conn)
 
 
-wsgi_app = "proficiency.wsgi:application"
+wsgi_app = "config.wsgi:application"
 bind = os.environ.get("GUNICORN_BIND", "127.0.0.1:8000").split(",")
 workers = max(2, int(os.environ.get("WEB_CONCURRENCY", multiprocessing.cpu_count() * 2 + 1)))
 worker_class = SlowClientThreadWorker

@@ -404,7 +404,7 @@ def test_gunicorn_config_has_at_least_two_workers_and_json_logs(monkeypatch):
     monkeypatch.setenv("WEB_CONCURRENCY", "1")
     config = runpy.run_path(str(ROOT / "deploy" / "gunicorn.conf.py"))
     assert config["workers"] == 2
-    assert config["wsgi_app"] == "proficiency.wsgi:application"
+    assert config["wsgi_app"] == "config.wsgi:application"
     # threaded workers without keep-alive (tests/proficiency/test_slow_clients.py)
     from gunicorn.workers.gthread import ThreadWorker
 
@@ -440,7 +440,7 @@ def test_housekeeping_deletes_only_what_expired_and_is_scheduled(settings):
     from django.contrib.sessions.models import Session
     from django.utils import timezone
 
-    from proficiency.celery import app
+    from config.celery import app
     from proficiency.tasks import housekeeping
 
     now = timezone.now()
@@ -484,7 +484,7 @@ def test_a_real_worker_runs_a_task_from_rabbitmq(tmp_path, monkeypatch):
     env = {**os.environ, "CELERY_BROKER_URL": AMQP_URL, "CELERY_RESULT_BACKEND": "rpc://",
            "DATABASE_URL": f"sqlite:///{tmp_path / 'worker.sqlite3'}"}  # fmt: skip
     worker = subprocess.Popen(
-        [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-Q", queue,
+        [sys.executable, "-m", "celery", "-A", "config", "worker", "-Q", queue,
          "-n", f"{queue}@%h", "-c", "1", "-P", "solo", "--without-gossip", "--without-mingle"],
         cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
     )  # fmt: skip

@@ -103,7 +103,7 @@ AUTHENTICATION_BACKENDS = [
     "django.contrib.auth.backends.ModelBackend",
 ]
 
-ROOT_URLCONF = "proficiency.urls"
+ROOT_URLCONF = "config.urls"
 
 TEMPLATES = [
     {
@@ -120,7 +120,7 @@ TEMPLATES = [
     },
 ]
 
-WSGI_APPLICATION = "proficiency.wsgi.application"
+WSGI_APPLICATION = "config.wsgi.application"
 
 # Embedded default: SQLite beside manage.py. DATABASE_URL=postgres://... for PostgreSQL
 # (psycopg 3).
