@@ -25,7 +25,7 @@ final step pools the moments of all chunks into the matrices
 succeeded.  The single-task path is the same code with one chunk, so both give
 identical numbers.
 
-Lost workers (``proficiency.jobs``): every task heartbeats the run (and its chunk)
+Lost workers (``common.jobs``): every task heartbeats the run (and its chunk)
 while it works; ``analysis_sweep`` (Celery beat) re-queues the chunks whose claim
 went stale, and the work of a run silent for ``JOB_STALE_SECONDS`` (its run task,
 its unclaimed chunks or its final step).  A run that fails or is cancelled keeps
@@ -75,10 +75,10 @@ from analysis.pipeline import (
     sigma_pt_values,
 )
 from analysis.selectors import LoadedRound, load_round, point_result_counts, point_spec
+from common.errors import ApplicationError, StateConflict, ValidationFailed
+from common.jobs import heartbeat, stale_before
 from labs.models import Result
 from labs.selectors import current_submissions
-from proficiency.errors import ApplicationError, StateConflict, ValidationFailed
-from proficiency.jobs import heartbeat, stale_before
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint, SigmaPtMode
 
 log = logging.getLogger(__name__)

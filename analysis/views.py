@@ -34,9 +34,9 @@ from analysis.selectors import (
     run_scores,
 )
 from analysis.services import analysis_run_cancel, analysis_run_start
+from common.errors import ApplicationError, NotVisible
 from labs.selectors import participant_for_user
 from proficiency.coordinator_views import POINT_ORDER, coordinated
-from proficiency.errors import ApplicationError, NotVisible
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.services import comparison_publish
 

@@ -72,11 +72,11 @@ logconfig_dict = {
     "version": 1,
     "disable_existing_loggers": False,
     "formatters": {
-        "json": {"()": "proficiency.logs.JsonFormatter"},
+        "json": {"()": "common.logs.JsonFormatter"},
         "plain": {"format": "%(asctime)s %(levelname)s %(name)s %(message)s"},
     },
     # a client cut at the read timeout: one INFO line, not a traceback
-    "filters": {"client_timeout": {"()": "proficiency.logs.ClientTimeoutFilter"}},
+    "filters": {"client_timeout": {"()": "common.logs.ClientTimeoutFilter"}},
     "handlers": {
         "console": {
             "class": "logging.StreamHandler",

@@ -129,7 +129,7 @@ def _model(amp: np.ndarray, phase: np.ndarray, offset: float, nu: float, n: int)
 class RawUploadLimit:
     """Upload handler (put first) that stops a multipart body as soon as one file in it
     passes ``limit`` bytes: the limit holds also when Content-Length is absent or lies.
-    Raises :class:`~proficiency.errors.RequestTooLarge` (413)."""
+    Raises :class:`~common.errors.RequestTooLarge` (413)."""
 
     chunk_size = 64 * 1024
 
@@ -146,8 +146,8 @@ class RawUploadLimit:
         self.received, self.name = 0, file_name
 
     def receive_data_chunk(self, raw_data: bytes, start: int) -> bytes:
+        from common.errors import RequestTooLarge
         from labs.importers.values import human_size
-        from proficiency.errors import RequestTooLarge
 
         self.received += len(raw_data)
         if self.received > self.limit:

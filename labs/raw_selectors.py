@@ -6,9 +6,9 @@ from __future__ import annotations
 from django.db.models import QuerySet
 
 from analysis.core.signals.records import Record
+from common.errors import NotVisible
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord
 from labs.raw import read_record
-from proficiency.errors import NotVisible
 from proficiency.models import MeasurementPoint
 
 # --- reads -------------------------------------------------------------------------------

@@ -36,11 +36,11 @@ from django.utils import timezone
 import proficiency
 from analysis.core.groups import CoreInputError
 from analysis.core.signals.sensitivity import record_sensitivity
+from common.errors import RequestTooLarge, ValidationFailed
+from common.jobs import heartbeat, stale_before
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord, Result, Submission
 from labs.raw import read_record
 from labs.raw_selectors import raw_record_read
-from proficiency.errors import RequestTooLarge, ValidationFailed
-from proficiency.jobs import heartbeat, stale_before
 from proficiency.models import MeasurementPoint
 
 log = logging.getLogger(__name__)

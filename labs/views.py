@@ -21,6 +21,8 @@ from django.views.decorators.csrf import csrf_exempt, csrf_protect
 from django.views.decorators.http import require_GET, require_http_methods
 from django_htmx.http import HttpResponseClientRedirect
 
+from common.errors import NotVisible, StateConflict, ValidationFailed
+from common.middleware import validates_own_text
 from labs import services
 from labs.forms import APIKeyCreateForm, ResultGridForm, ResultUploadForm
 from labs.importers.values import human_size
@@ -34,8 +36,6 @@ from labs.selectors import (
 from labs.selectors import results_template as template_bytes
 from proficiency import protocols
 from proficiency import views as proficiency_views
-from proficiency.errors import NotVisible, StateConflict, ValidationFailed
-from proficiency.middleware import validates_own_text
 from proficiency.models import Comparison
 
 CONTENT_TYPES = {
@@ -402,10 +402,10 @@ def raw_data(request: HttpRequest, code: str) -> HttpResponse:
 
 @csrf_protect
 def _raw_data(request: HttpRequest, code: str) -> HttpResponse:
+    from common.errors import RequestTooLarge
     from labs.raw_forms import RawUploadForm
     from labs.raw_selectors import raw_point_choices
     from labs.raw_services import raw_upload_submit
-    from proficiency.errors import RequestTooLarge
 
     participant = _participant(request, code)
     points = raw_point_choices(participant)

@@ -15,11 +15,11 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 
 from analysis.api.views import require_coordinator
+from common.errors import ValidationFailed
 from labs.api.views import ApiView
 from labs.models import Laboratory
 from labs.services import participant_add
 from proficiency import protocols
-from proficiency.errors import ValidationFailed
 from proficiency.models import Comparison, Device
 from proficiency.serializers import POSITIVE, NewComparisonSerializer
 from proficiency.services import (

@@ -17,12 +17,12 @@ from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
 
+from common.errors import ApplicationError
 from labs.models import Participant, Result, Submission
 from labs.review import submission_decide, submission_request_check
 from labs.selectors import current_submissions
 from labs.services import participant_add, participant_set_reference
 from proficiency import protocols, services
-from proficiency.errors import ApplicationError
 from proficiency.forms import (
     ComparisonCreateForm,
     ComparisonForm,

@@ -7,8 +7,8 @@ from collections.abc import Iterable, Sequence
 
 from django.db import transaction
 
+from common.errors import InvalidTransition, StateConflict, ValidationFailed
 from proficiency import protocols
-from proficiency.errors import InvalidTransition, StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
 
 S = ComparisonStatus

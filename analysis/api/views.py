@@ -21,11 +21,11 @@ from analysis.models import AnalysisRun, Score
 from analysis.pipeline import matrix_record
 from analysis.selectors import SCORE_FILTERS, current_run, lab_matrices, run_matrices, run_scores
 from analysis.services import analysis_run_cancel, analysis_run_start
+from common.errors import NotVisible, StateConflict, ValidationFailed
 from labs.api.permissions import ComparisonAccess, caller_of, comparisons_for
 from labs.api.views import ApiView
 from labs.models import Result, Submission
 from labs.review import submission_decide, submission_request_check
-from proficiency.errors import NotVisible, StateConflict, ValidationFailed
 from proficiency.models import ComparisonStatus
 from proficiency.services import comparison_publish, comparison_transition
 

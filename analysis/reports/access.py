@@ -11,8 +11,8 @@ from __future__ import annotations
 from django.db.models import Q, QuerySet
 
 from analysis.models import Report
+from common.errors import NotVisible
 from labs.api.permissions import Caller, ComparisonAccess, comparison_access
-from proficiency.errors import NotVisible
 from proficiency.models import ComparisonStatus
 
 

@@ -19,9 +19,9 @@ from analysis.models import Report, ReportDownload
 from analysis.reports.access import download_name, report_for_download, reports_visible
 from analysis.reports.assemble import report_status
 from analysis.reports.services import report_issue, report_notes_update
+from common.errors import NotVisible
 from labs.api.permissions import caller_of
 from labs.api.views import ApiView, validated
-from proficiency.errors import NotVisible
 from proficiency.models import Comparison
 
 

@@ -36,8 +36,8 @@ from analysis.reports.data import ResultRow, ScoreRow
 from analysis.reports.figures import point_charts_build
 from analysis.reports.render import render_report
 from analysis.selectors import current_run
+from common.errors import StateConflict, ValidationFailed
 from labs.models import Participant
-from proficiency.errors import StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus
 
 REPORTABLE = (ComparisonStatus.ANALYSED, ComparisonStatus.PUBLISHED)

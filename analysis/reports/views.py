@@ -12,8 +12,8 @@ from django.shortcuts import render
 from django.urls import path
 
 from analysis.reports.access import reports_visible
+from common.errors import NotVisible
 from labs.api.permissions import Caller, comparison_access
-from proficiency.errors import NotVisible
 
 #: every version of every report is kept, so the list grows with each issue
 REPORTS_PER_PAGE = 50

@@ -8,7 +8,7 @@ A caller is either a laboratory (through one of its API keys) or a person
 * coordinator: a user in ``comparison.coordinators``, or a superuser; sees the
   comparison and every participant's submissions, laboratories by code only.
 
-Anything outside the caller's scope is :class:`~proficiency.errors.NotVisible`
+Anything outside the caller's scope is :class:`~common.errors.NotVisible`
 (404, never 403), so another laboratory's objects cannot even be confirmed to
 exist. 403 is kept for a visible comparison on which the caller lacks the role
 (a coordinator who is not a participant trying to submit).
@@ -23,10 +23,10 @@ from django.db.models import Count, QuerySet
 from rest_framework.exceptions import PermissionDenied
 from rest_framework.request import Request
 
+from common.errors import NotVisible, ValidationFailed
 from labs.api.authentication import LabKeyPrincipal
 from labs.models import Laboratory, Participant, Result, Submission
 from labs.selectors import lab_comparisons, participant_for_lab, participant_for_user
-from proficiency.errors import NotVisible, ValidationFailed
 from proficiency.models import Comparison, MeasurementPoint
 from proficiency.selectors import comparisons_visible_to
 

@@ -2,7 +2,7 @@
 
 Errors are raised, never built here: ApplicationError subclasses and DRF's own
 exceptions are turned into ``{"detail", "errors"}`` by
-:func:`proficiency.errors.api_exception_handler`.
+:func:`common.errors.api_exception_handler`.
 """
 
 from __future__ import annotations
@@ -22,6 +22,9 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
+from common.errors import RequestTooLarge, ValidationFailed
+from common.parsers import FormParser, JSONParser, MultiPartParser
+from common.rendering import ValuesRendering
 from labs.api import serializers as s
 from labs.api.authentication import LabAPIKeyAuthentication
 from labs.api.permissions import (
@@ -40,10 +43,7 @@ from labs.importers.values import human_size
 from labs.models import Submission
 from labs.selectors import results_template
 from labs.services import submission_from_file, submission_from_records
-from proficiency.errors import RequestTooLarge, ValidationFailed
 from proficiency.models import ComparisonStatus, MeasurementPoint
-from proficiency.parsers import FormParser, JSONParser, MultiPartParser
-from proficiency.rendering import ValuesRendering
 from proficiency.serializers import NewComparisonSerializer
 
 #: multipart framing (boundaries, part headers, the submit field) on top of the file itself
@@ -141,7 +141,7 @@ class ApiView(APIView):
 
 
 class ValuesListView(generics.ListAPIView):
-    """A list whose page is rendered from ``values_list`` rows (:mod:`proficiency.rendering`):
+    """A list whose page is rendered from ``values_list`` rows (:mod:`common.rendering`):
     the same JSON as ``serializer_class``, without building model instances or fields."""
 
     rendering: ValuesRendering

@@ -12,8 +12,8 @@ import pytest
 from django.core.management import call_command
 from django.db import OperationalError
 
-from proficiency import health
-from proficiency.logs import JsonFormatter
+from common import health
+from common.logs import JsonFormatter
 
 ROOT = Path(__file__).resolve().parents[2]
 REDIS_URL = os.environ.get("CELERY_BROKER_URL", "")
@@ -71,7 +71,7 @@ def test_healthz_is_503_naming_the_database_and_leaks_no_reason(client, monkeypa
             raise OperationalError('password authentication failed for user "pt-secret-user"')
 
     monkeypatch.setattr(health, "connection", BrokenConnection())
-    with caplog.at_level(logging.ERROR, logger="proficiency.health"):
+    with caplog.at_level(logging.ERROR, logger="common.health"):
         response = client.get("/healthz")
     assert response.status_code == 503
     assert response.json() == {"database": "error", "broker": "ok"}
@@ -411,7 +411,7 @@ def test_gunicorn_config_has_at_least_two_workers_and_json_logs(monkeypatch):
     assert issubclass(config["worker_class"], ThreadWorker)
     assert (config["threads"], config["keepalive"], config["READ_TIMEOUT"]) == (4, 0, 30.0)
     formatter = config["logconfig_dict"]["formatters"]["json"]["()"]
-    assert formatter == "proficiency.logs.JsonFormatter"
+    assert formatter == "common.logs.JsonFormatter"
 
 
 def test_gunicorn_worker_freezes_what_start_up_allocated():
