@@ -24,6 +24,7 @@ from django.views.decorators.http import require_GET, require_POST
 from analysis import charts
 from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
 from analysis.models import AnalysisRun, AssignedValue, Score
+from analysis.publication import comparison_publish
 from analysis.selectors import (
     EXACT_MAX,
     approximate_subsets,
@@ -35,10 +36,10 @@ from analysis.selectors import (
 )
 from analysis.services import analysis_run_cancel, analysis_run_start
 from common.errors import ApplicationError, NotVisible
+from labs.access import coordinated
 from labs.selectors import participant_for_user
-from proficiency.coordinator_views import POINT_ORDER, coordinated
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
-from proficiency.services import comparison_publish
+from proficiency.selectors import POINT_ORDER
 
 COORDINATOR, PARTICIPANT = "coordinator", "participant"
 R = AnalysisRun.Status

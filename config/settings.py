@@ -76,6 +76,7 @@ INSTALLED_APPS = [
     "proficiency",
     "labs",
     "analysis",
+    "coordination",
 ]
 
 MIDDLEWARE = [
@@ -198,7 +199,8 @@ _VISIBILITY = max(3600, CELERY_TASK_TIME_LIMIT) + 300
 CELERY_BROKER_TRANSPORT_OPTIONS = {
     "visibility_timeout": env.int("CELERY_VISIBILITY_TIMEOUT", default=_VISIBILITY)
 }
-# Celery beat (exactly one per installation): daily housekeeping (proficiency.tasks).
+# Celery beat (exactly one per installation): daily housekeeping (labs.tasks, under its old
+# name proficiency.tasks.housekeeping).
 CELERY_BEAT_SCHEDULE = {
     "housekeeping": {
         "task": "proficiency.tasks.housekeeping",

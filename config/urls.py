@@ -26,12 +26,12 @@ urlpatterns = [
     # pattern tried before them costs each request time (bench/README.md, "Load test").
     path("api/v1/", include("labs.api.urls")),
     path("api/v1/", include("analysis.api.urls")),
-    path("api/v1/", include("proficiency.api")),
+    path("api/v1/", include("coordination.api")),
     path("api/v1/", include("analysis.reports.api")),
     # "/" is a lab member's dashboard, the public landing page for everyone else.
     path("", lab_views.home, name="home"),
     path("", include("labs.urls")),
-    path("", include("proficiency.coordinator_urls")),
+    path("", include("coordination.urls")),
     path("", include("analysis.reports.views")),
     path("accounts/", include(AUTH_URLS)),
     path("admin/", admin.site.urls),

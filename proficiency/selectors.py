@@ -5,7 +5,10 @@ from __future__ import annotations
 from django.contrib.auth.models import AbstractBaseUser, AnonymousUser
 from django.db.models import Q, QuerySet
 
-from proficiency.models import Comparison
+from proficiency.models import Comparison, MeasurementPoint
+
+#: Rows related to a measurement point in the points' own order (device, axis, frequency, ...).
+POINT_ORDER = [f"measurement_point__{f}" for f in MeasurementPoint._meta.ordering]
 
 
 def comparisons_visible_to(user: AbstractBaseUser | AnonymousUser) -> QuerySet[Comparison]:

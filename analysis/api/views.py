@@ -19,6 +19,7 @@ from analysis.api import serializers as s
 from analysis.core.groups import CoreInputError
 from analysis.models import AnalysisRun, Score
 from analysis.pipeline import matrix_record
+from analysis.publication import comparison_publish
 from analysis.selectors import SCORE_FILTERS, current_run, lab_matrices, run_matrices, run_scores
 from analysis.services import analysis_run_cancel, analysis_run_start
 from common.errors import NotVisible, StateConflict, ValidationFailed
@@ -27,7 +28,7 @@ from labs.api.views import ApiView
 from labs.models import Result, Submission
 from labs.review import submission_decide, submission_request_check
 from proficiency.models import ComparisonStatus
-from proficiency.services import comparison_publish, comparison_transition
+from proficiency.services import comparison_transition
 
 FACTORS = ("axis", "frequency", "device", "bench", "direction", "lab")
 POINT_FILTERS = [

@@ -441,7 +441,7 @@ def test_housekeeping_deletes_only_what_expired_and_is_scheduled(settings):
     from django.utils import timezone
 
     from config.celery import app
-    from proficiency.tasks import housekeeping
+    from labs.tasks import housekeeping
 
     now = timezone.now()
     Session.objects.create(session_key="old", session_data="x", expire_date=now - timedelta(1))

@@ -18,12 +18,7 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
 
 from common.errors import ApplicationError
-from labs.models import Participant, Result, Submission
-from labs.review import submission_decide, submission_request_check
-from labs.selectors import current_submissions
-from labs.services import participant_add, participant_set_reference
-from proficiency import protocols, services
-from proficiency.forms import (
+from coordination.forms import (
     ComparisonCreateForm,
     ComparisonForm,
     DecisionForm,
@@ -33,7 +28,14 @@ from proficiency.forms import (
     PointOverrideForm,
     ReportNotesForm,
 )
+from labs.access import coordinated, coordinated_comparisons
+from labs.models import Participant, Result, Submission
+from labs.review import submission_decide, submission_request_check
+from labs.selectors import current_submissions
+from labs.services import participant_add, participant_set_reference
+from proficiency import protocols, services
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
+from proficiency.selectors import POINT_ORDER
 from proficiency.services import (
     comparison_allowed_transitions,
     comparison_apply_template,
@@ -42,23 +44,6 @@ from proficiency.services import (
 )
 
 St = Submission.Status
-
-# --- who may see what ---------------------------------------------------------------------
-
-
-def coordinated_comparisons(user) -> QuerySet[Comparison]:  # type: ignore[no-untyped-def]
-    """Comparisons the user coordinates; a superuser coordinates them all."""
-    if user.is_superuser:
-        return Comparison.objects.all()
-    return Comparison.objects.filter(coordinators=user)
-
-
-def coordinated(request: HttpRequest, code: str) -> Comparison:
-    """The comparison ``code`` if the user coordinates it; 404 otherwise (no existence leak)."""
-    comparison = coordinated_comparisons(request.user).filter(code=code).first()
-    if comparison is None:
-        raise Http404(f"No comparison {code!r} that you coordinate.")
-    return comparison
 
 
 def _may_create(user) -> bool:  # type: ignore[no-untyped-def]
@@ -326,9 +311,6 @@ def _others(comparison: Comparison, participant: Participant) -> dict[int, list[
     for point_id, lab, value, big_u in rows:
         by_point[point_id].append((lab, value, big_u))
     return by_point
-
-
-POINT_ORDER = [f"measurement_point__{f}" for f in MeasurementPoint._meta.ordering]
 
 
 def _review_rows(submission: Submission) -> list[dict]:
