@@ -35,9 +35,8 @@ from analysis.selectors import (
     run_scores,
 )
 from analysis.services import analysis_run_cancel, analysis_run_start
-from common.errors import ApplicationError, NotVisible
-from labs.access import coordinated
-from labs.selectors import participant_for_user
+from common.errors import ApplicationError
+from labs.access import coordinated, published_participation
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.selectors import POINT_ORDER
 
@@ -88,13 +87,8 @@ def _viewer(request: HttpRequest, code: str, audience: str) -> Viewer:
     if audience == COORDINATOR:
         comparison = coordinated(request, code)
         return Viewer(comparison, _chosen_run(comparison, request.GET.get("run", "")), audience)
-    try:
-        participant = participant_for_user(code=code, user=request.user)
-    except NotVisible as exc:
-        raise Http404(exc.message) from None
+    participant = published_participation(request, code)
     comparison = participant.comparison
-    if comparison.status != ComparisonStatus.PUBLISHED:
-        raise Http404(f"The results of {code} are not published yet.")
     return Viewer(comparison, current_run(comparison), audience, own_code=participant.code)
 
 

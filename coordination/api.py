@@ -13,9 +13,9 @@ from rest_framework import serializers, status
 from rest_framework.request import Request
 from rest_framework.response import Response
 
-from analysis.api.views import require_coordinator
 from common.api import valid_data
 from common.errors import ValidationFailed
+from labs.access import require_coordinator
 from labs.api.views import ApiView
 from labs.models import Laboratory
 from labs.services import participant_add

@@ -11,9 +11,9 @@ from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import render
 from django.urls import path
 
-from analysis.reports.access import reports_visible
+from analysis.access import reports_visible
 from common.errors import NotVisible
-from labs.api.permissions import Caller, comparison_access
+from labs.access import Caller, comparison_access
 
 #: every version of every report is kept, so the list grows with each issue
 REPORTS_PER_PAGE = 50

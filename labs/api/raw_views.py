@@ -16,8 +16,8 @@ from rest_framework.request import Request
 from rest_framework.response import Response
 
 from common.parsers import FormParser, MultiPartParser
+from labs.access import ComparisonAccess, caller_of, require_participant
 from labs.api import raw_serializers as rs
-from labs.api.permissions import ComparisonAccess, caller_of, require_participant
 from labs.api.views import AUTH_ERRORS, CODE, NOT_VISIBLE, SUBMIT_ERRORS, ApiView, validated
 from labs.api.views import check_content_length as _check_content_length
 from labs.models import RawRecord

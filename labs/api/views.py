@@ -27,9 +27,7 @@ from common.api import ValuesListView, valid_data
 from common.errors import RequestTooLarge, ValidationFailed
 from common.parsers import FormParser, JSONParser, MultiPartParser
 from common.rendering import ValuesRendering
-from labs.api import serializers as s
-from labs.api.authentication import LabAPIKeyAuthentication
-from labs.api.permissions import (
+from labs.access import (
     ComparisonAccess,
     caller_of,
     comparison_access,
@@ -40,6 +38,8 @@ from labs.api.permissions import (
     submission_results,
     submissions_in_scope,
 )
+from labs.api import serializers as s
+from labs.api.authentication import LabAPIKeyAuthentication
 from labs.api.throttling import LabAPIKeyRateThrottle, SessionUserRateThrottle
 from labs.importers.values import human_size
 from labs.models import Submission

@@ -17,13 +17,13 @@ from rest_framework.renderers import JSONRenderer
 
 from common.errors import NotVisible
 from common.rendering import ValuesRendering
-from labs.api import serializers as s
-from labs.api.permissions import (
+from labs.access import (
     ComparisonAccess,
     measurement_points,
     submission_results,
     submissions_in_scope,
 )
+from labs.api import serializers as s
 from labs.api.views import ComparisonList, MeasurandList, SubmissionCollection
 from labs.models import LabAPIKey, Participant, Submission
 from labs.selectors import participant_for_lab
