@@ -15,6 +15,7 @@ from analysis import consistency as tests
 from analysis.models import AssignedValue
 from analysis.selectors import run_consistency
 from analysis.views import Viewer, _page, _render, _viewer
+from labs.importers import write_table
 
 BADGE = {"correct": "text-bg-success", "straggler": "text-bg-warning",
          "outlier": "text-bg-danger", tests.NA: "text-bg-light border"}  # fmt: skip
@@ -83,8 +84,6 @@ def _lab_view(lab: dict[str, Any], viewer: Viewer) -> dict[str, Any]:
 @require_GET
 def consistency_download(request: HttpRequest, code: str, audience: str) -> HttpResponse:
     """Every point's tests in long form (``analysis.consistency.csv_rows``), full precision."""
-    from labs.importers import write_table
-
     viewer = _viewer(request, code, audience)
     if viewer.run is None:
         raise Http404(f"{code} has no analysed results yet.")

@@ -44,12 +44,14 @@ from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
+from celery import group, uuid
 from django.conf import settings
 from django.contrib.auth.models import AbstractBaseUser
 from django.db import connection, transaction
 from django.db.models import F, Q, Value
 from django.db.models.functions import Coalesce, Greatest
 from django.utils import timezone
+from kombu.exceptions import OperationalError
 
 import proficiency
 from analysis.bulk import planner_stats_refresh
@@ -75,6 +77,7 @@ from analysis.pipeline import (
     sigma_pt_values,
 )
 from analysis.selectors import LoadedRound, load_round, point_result_counts, point_spec
+from analysis.tasks import analysis_chunk_task, analysis_finish_task, analysis_run_task
 from common.errors import ApplicationError, StateConflict, ValidationFailed
 from common.jobs import heartbeat, stale_before
 from labs.models import Result
@@ -94,8 +97,6 @@ def analysis_run_start(
     *, comparison: Comparison, user: AbstractBaseUser | None, parameters: dict | None = None
 ) -> AnalysisRun:
     """Create a pending run and enqueue it once the transaction has committed."""
-    from analysis.tasks import analysis_run_task
-
     with transaction.atomic():
         locked = Comparison.objects.select_for_update().get(pk=comparison.pk)
         if locked.status not in (ComparisonStatus.CLOSED, ComparisonStatus.ANALYSED):
@@ -125,8 +126,6 @@ def _active_run(comparison: Comparison, parameters: dict) -> AnalysisRun | None:
 def _enqueue(task: Any, *args: Any, queue: str | None = None) -> bool:
     """Send a task of run ``args[0]``; when the broker cannot be reached a new run fails
     with a clear error (never a run pending for ever), later steps are left to the sweep."""
-    from kombu.exceptions import OperationalError
-
     try:
         task.apply_async(args, queue=queue) if queue else task.delay(*args)
     except (OperationalError, OSError) as exc:
@@ -249,10 +248,6 @@ def _execute(run_id: int, queue: str | None, delivery: str) -> str:
 
 def _dispatch(run_id: int, indexes: Iterable[int], queue: str | None) -> None:
     """Send one task per chunk; the chunk that stores the last one queues the final step."""
-    from celery import group
-
-    from analysis.tasks import analysis_chunk_task
-
     options = {"queue": queue} if queue else {}
     group(analysis_chunk_task.si(run_id, i).set(**options) for i in indexes).apply_async()
 
@@ -378,8 +373,6 @@ def analysis_chunk_execute(
     if not stored:  # the run ended meanwhile, or the chunk was taken over
         return _status(run_id)
     if last and then_finish:
-        from analysis.tasks import analysis_finish_task
-
         _enqueue(analysis_finish_task, run_id, queue=queue)  # if lost: the sweep sends it
     return R.RUNNING
 
@@ -590,10 +583,6 @@ def analysis_sweep() -> dict[str, int]:
     once, and a task delivered twice finds its work claimed or done.  Returns the counts
     of tasks sent.
     """
-    from celery import uuid
-
-    from analysis.tasks import analysis_chunk_task, analysis_finish_task, analysis_run_task
-
     sent = {"runs": 0, "chunks": 0, "finish": 0}
     now = timezone.now()
     with transaction.atomic():
@@ -642,8 +631,6 @@ def _lease(run: AnalysisRun, **fields: Any) -> bool:
 
 
 def _send(task: Any, run_id: int, *, task_id: str) -> bool:
-    from kombu.exceptions import OperationalError
-
     try:
         task.apply_async((run_id,), task_id=task_id)
     except (OperationalError, OSError) as exc:

@@ -37,6 +37,7 @@ from analysis.selectors import (
 from analysis.services import analysis_run_cancel, analysis_run_start
 from common.errors import ApplicationError
 from labs.access import coordinated, published_participation
+from labs.importers import write_table
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.selectors import POINT_ORDER
 
@@ -289,8 +290,6 @@ def _score_records(run: AnalysisRun, filters: dict[str, str]) -> list[dict]:
 @require_GET
 def scores_download(request: HttpRequest, code: str, fmt: str, audience: str) -> HttpResponse:
     """The (filtered) scores as CSV or XLSX; formula-like cells are escaped by write_table."""
-    from labs.importers import write_table
-
     if fmt not in CONTENT_TYPES:
         raise Http404("Scores come as .csv or .xlsx.")
     viewer = _viewer(request, code, audience)

@@ -19,6 +19,7 @@ from typing import Any
 from django.conf import settings
 from django.core.exceptions import BadRequest
 from django.http import Http404, HttpRequest, HttpResponse, JsonResponse, QueryDict
+from django.views.defaults import bad_request as django_bad_request
 
 from common.errors import ValidationFailed
 from common.sizes import human_size
@@ -234,7 +235,6 @@ def bad_request(request: HttpRequest, exception: Exception) -> HttpResponse:
     request Django's."""
     if isinstance(exception, ControlCharacters):
         return control_response(request, exception)
-    from django.views.defaults import bad_request as django_bad_request
 
     return django_bad_request(request, exception)
 

@@ -1,5 +1,6 @@
-"""Coordinator setup API: create a comparison, add devices, generate the point grid, invite
-laboratories (docs/interfaces.md §3, extended). Thin views over ``proficiency.services`` and
+"""Coordinator setup API: add devices, generate the point grid, invite laboratories
+(docs/interfaces.md §3, extended; creating a comparison is ``POST /api/v1/comparisons/``,
+labs.api.views.ComparisonList). Thin views over ``proficiency.services`` and
 ``labs.services``; the same rules as the coordinator pages."""
 
 from __future__ import annotations

@@ -12,11 +12,13 @@ from collections import Counter, defaultdict
 
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
+from django.core.paginator import Paginator
 from django.db.models import Count, OuterRef, QuerySet, Subquery
 from django.http import Http404, HttpRequest, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
 
+from analysis.reports.services import report_notes_update
 from common.errors import ApplicationError
 from coordination.forms import (
     ComparisonCreateForm,
@@ -30,6 +32,7 @@ from coordination.forms import (
 )
 from labs.access import coordinated, coordinated_comparisons
 from labs.models import Participant, Result, Submission
+from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
 from labs.review import submission_decide, submission_request_check
 from labs.selectors import current_submissions
 from labs.services import participant_add, participant_set_reference
@@ -151,8 +154,6 @@ def comparison_status(request: HttpRequest, code: str) -> HttpResponse:
 @require_http_methods(["GET", "POST"])
 def report_notes(request: HttpRequest, code: str) -> HttpResponse:
     """Comments, conclusions and the authoriser printed in the reports."""
-    from analysis.reports.services import report_notes_update
-
     comparison = coordinated(request, code)
     initial = {
         "comments": comparison.report_comments,
@@ -281,8 +282,6 @@ REVIEW_PER_PAGE = 50
 @login_required
 @require_GET
 def review(request: HttpRequest, code: str) -> HttpResponse:
-    from django.core.paginator import Paginator
-
     comparison = coordinated(request, code)
     participants = _latest_status(comparison.participants.select_related("laboratory"))
     page = Paginator(participants.order_by("code"), REVIEW_PER_PAGE)
@@ -390,10 +389,6 @@ RAW_PER_PAGE = 10
 @require_GET
 def raw_review(request: HttpRequest, code: str) -> HttpResponse:
     """Every participant's raw records (by code): reported vs recomputed, En, fs, fit."""
-    from django.core.paginator import Paginator
-
-    from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
-
     comparison = coordinated(request, code)
     page = Paginator(raw_records_of_comparison(comparison.pk), RAW_PER_PAGE).get_page(
         request.GET.get("page")

@@ -21,6 +21,7 @@ from labs.models import SubmissionKey
 def raw_recompute_task(self, record_id: int) -> str:
     """Recompute the sensitivity of raw record ``record_id`` (claimed with a conditional
     update: a second delivery finds it done and changes nothing)."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
     from labs.raw_services import raw_recompute_execute
 
     return raw_recompute_execute(record_id=record_id, delivery=self.request.id or "")

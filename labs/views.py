@@ -21,13 +21,17 @@ from django.views.decorators.csrf import csrf_exempt, csrf_protect
 from django.views.decorators.http import require_GET, require_http_methods
 from django_htmx.http import HttpResponseClientRedirect
 
-from common.errors import NotVisible, StateConflict, ValidationFailed
+from common.errors import NotVisible, RequestTooLarge, StateConflict, ValidationFailed
 from common.middleware import validates_own_text
 from labs import services
 from labs.access import comparisons_visible_to, managed_lab, managed_labs, participant_page
 from labs.forms import APIKeyCreateForm, ResultGridForm, ResultUploadForm
 from labs.importers.values import human_size
 from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission
+from labs.raw import RawUploadLimit
+from labs.raw_forms import RawUploadForm
+from labs.raw_selectors import raw_point_choices, raw_record_figure, raw_record_get, raw_records_of
+from labs.raw_services import human_limit, raw_declared_too_large, raw_upload_submit
 from labs.selectors import (
     comparison_points,
     participant_submissions,
@@ -346,9 +350,6 @@ def api_key_revoke(request: HttpRequest, lab_pk: int, prefix: str) -> HttpRespon
 def _raw_page(
     request: HttpRequest, participant: Participant, form: object, error: str = ""
 ) -> HttpResponse:
-    from labs.raw_selectors import raw_records_of
-    from labs.raw_services import human_limit
-
     context = {
         "participant": participant,
         "comparison": participant.comparison,
@@ -366,11 +367,6 @@ def _raw_page(
 @require_http_methods(["GET", "POST"])
 def raw_data(request: HttpRequest, code: str) -> HttpResponse:
     """The laboratory's raw records for ``code`` and the form to attach one."""
-    from labs.raw import RawUploadLimit
-    from labs.raw_forms import RawUploadForm
-    from labs.raw_selectors import raw_point_choices
-    from labs.raw_services import raw_declared_too_large
-
     too_large = raw_declared_too_large(request.META) if request.method == "POST" else None
     if too_large:  # refused on the declared size, before anything reads the body
         participant = participant_page(request, code)
@@ -385,11 +381,6 @@ def raw_data(request: HttpRequest, code: str) -> HttpResponse:
 
 @csrf_protect
 def _raw_data(request: HttpRequest, code: str) -> HttpResponse:
-    from common.errors import RequestTooLarge
-    from labs.raw_forms import RawUploadForm
-    from labs.raw_selectors import raw_point_choices
-    from labs.raw_services import raw_upload_submit
-
     participant = participant_page(request, code)
     points = raw_point_choices(participant)
     try:
@@ -408,8 +399,6 @@ def _raw_data(request: HttpRequest, code: str) -> HttpResponse:
 @require_GET
 def raw_record(request: HttpRequest, code: str, pk: int) -> HttpResponse:
     """One raw record: reported vs recomputed sensitivity, En, fs found, record with fit."""
-    from labs.raw_selectors import raw_record_figure, raw_record_get, raw_records_of
-
     participant = participant_page(request, code)
     try:
         record = raw_record_get(raw_records_of(participant), pk)
