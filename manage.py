@@ -17,7 +17,7 @@ def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] in STANDALONE_COMMANDS:
         import_module(STANDALONE_COMMANDS[sys.argv[1]]).Command().run_from_argv(sys.argv)
         return
-    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "proficiency.settings")
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings")
     from django.core.management import execute_from_command_line
 
     execute_from_command_line(sys.argv)

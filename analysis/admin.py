@@ -9,7 +9,7 @@ from analysis.models import (
     ReportDownload,
     Score,
 )
-from proficiency.admin_site import RecordedByServicesAdmin
+from common.admin_site import RecordedByServicesAdmin
 
 
 @admin.register(AnalysisRun)

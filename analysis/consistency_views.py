@@ -15,9 +15,10 @@ from analysis import consistency as tests
 from analysis.models import AssignedValue
 from analysis.selectors import run_consistency
 from analysis.views import Viewer, _page, _render, _viewer
+from labs.importers import write_table
 
 if TYPE_CHECKING:
-    from proficiency.http import AuthenticatedHttpRequest
+    from common.http import AuthenticatedHttpRequest
 
 BADGE = {"correct": "text-bg-success", "straggler": "text-bg-warning",
          "outlier": "text-bg-danger", tests.NA: "text-bg-light border"}  # fmt: skip
@@ -88,8 +89,6 @@ def consistency_download(
     request: AuthenticatedHttpRequest, code: str, audience: str
 ) -> HttpResponse:
     """Every point's tests in long form (``analysis.consistency.csv_rows``), full precision."""
-    from labs.importers import write_table
-
     viewer = _viewer(request, code, audience)
     if viewer.run is None:
         raise Http404(f"{code} has no analysed results yet.")

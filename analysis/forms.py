@@ -6,8 +6,8 @@ from typing import Any, cast
 
 from django import forms
 
+from common.forms import BootstrapMixin
 from labs.importers.values import format_number
-from proficiency.forms import BootstrapMixin
 from proficiency.models import Axis, Bench, Comparison, Direction, MeasurementPoint
 
 ALL = [("", "All")]

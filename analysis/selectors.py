@@ -15,9 +15,9 @@ from analysis.core.compatibility import compatibility_matrices
 from analysis.core.groups import Groups
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.pipeline import AssignedSpec, ResultTable
+from common.errors import ValidationFailed
 from labs.models import Result, Submission
 from labs.selectors import current_submissions
-from proficiency.errors import ValidationFailed
 from proficiency.models import AssignedValueMethod, Comparison, MeasurementPoint
 
 _RESULT_COLUMNS = (

@@ -25,7 +25,7 @@ final step pools the moments of all chunks into the matrices
 succeeded.  The single-task path is the same code with one chunk, so both give
 identical numbers.
 
-Lost workers (``proficiency.jobs``): every task heartbeats the run (and its chunk)
+Lost workers (``common.jobs``): every task heartbeats the run (and its chunk)
 while it works; ``analysis_sweep`` (Celery beat) re-queues the chunks whose claim
 went stale, and the work of a run silent for ``JOB_STALE_SECONDS`` (its run task,
 its unclaimed chunks or its final step).  A run that fails or is cancelled keeps
@@ -44,12 +44,14 @@ from collections.abc import Iterable
 from typing import Any
 
 import numpy as np
+from celery import group, uuid
 from django.conf import settings
 from django.contrib.auth.models import User
 from django.db import connection, transaction
 from django.db.models import F, Q, Value
 from django.db.models.functions import Coalesce, Greatest
 from django.utils import timezone
+from kombu.exceptions import OperationalError
 
 import proficiency
 from analysis.bulk import planner_stats_refresh
@@ -76,10 +78,11 @@ from analysis.pipeline import (
     sigma_pt_values,
 )
 from analysis.selectors import LoadedRound, load_round, point_result_counts, point_spec
+from analysis.tasks import analysis_chunk_task, analysis_finish_task, analysis_run_task
+from common.errors import ApplicationError, StateConflict, ValidationFailed
+from common.jobs import heartbeat, stale_before
 from labs.models import Result
 from labs.selectors import current_submissions
-from proficiency.errors import ApplicationError, StateConflict, ValidationFailed
-from proficiency.jobs import heartbeat, stale_before
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint, SigmaPtMode
 
 log = logging.getLogger(__name__)
@@ -95,8 +98,6 @@ def analysis_run_start(
     *, comparison: Comparison, user: User | None, parameters: dict | None = None
 ) -> AnalysisRun:
     """Create a pending run and enqueue it once the transaction has committed."""
-    from analysis.tasks import analysis_run_task
-
     with transaction.atomic():
         locked = Comparison.objects.select_for_update().get(pk=comparison.pk)
         if locked.status not in (ComparisonStatus.CLOSED, ComparisonStatus.ANALYSED):
@@ -126,8 +127,6 @@ def _active_run(comparison: Comparison, parameters: dict) -> AnalysisRun | None:
 def _enqueue(task: Any, *args: Any, queue: str | None = None) -> bool:
     """Send a task of run ``args[0]``; when the broker cannot be reached a new run fails
     with a clear error (never a run pending for ever), later steps are left to the sweep."""
-    from kombu.exceptions import OperationalError
-
     try:
         task.apply_async(args, queue=queue) if queue else task.delay(*args)
     except (OperationalError, OSError) as exc:
@@ -250,10 +249,6 @@ def _execute(run_id: int, queue: str | None, delivery: str) -> str:
 
 def _dispatch(run_id: int, indexes: Iterable[int], queue: str | None) -> None:
     """Send one task per chunk; the chunk that stores the last one queues the final step."""
-    from celery import group
-
-    from analysis.tasks import analysis_chunk_task
-
     options = {"queue": queue} if queue else {}
     group(analysis_chunk_task.si(run_id, i).set(**options) for i in indexes).apply_async()
 
@@ -379,8 +374,6 @@ def analysis_chunk_execute(
     if not stored:  # the run ended meanwhile, or the chunk was taken over
         return _status(run_id)
     if last and then_finish:
-        from analysis.tasks import analysis_finish_task
-
         _enqueue(analysis_finish_task, run_id, queue=queue)  # if lost: the sweep sends it
     return R.RUNNING
 
@@ -591,10 +584,6 @@ def analysis_sweep() -> dict[str, int]:
     once, and a task delivered twice finds its work claimed or done.  Returns the counts
     of tasks sent.
     """
-    from celery import uuid
-
-    from analysis.tasks import analysis_chunk_task, analysis_finish_task, analysis_run_task
-
     sent = {"runs": 0, "chunks": 0, "finish": 0}
     now = timezone.now()
     with transaction.atomic():
@@ -643,8 +632,6 @@ def _lease(run: AnalysisRun, **fields: Any) -> bool:
 
 
 def _send(task: Any, run_id: int, *, task_id: str) -> bool:
-    from kombu.exceptions import OperationalError
-
     try:
         task.apply_async((run_id,), task_id=task_id)
     except (OperationalError, OSError) as exc:

@@ -31,6 +31,7 @@ _TASK = {
 def analysis_run_task(self, run_id: int) -> str:
     """Execute analysis run ``run_id`` (claimed with a conditional update); its chunks go
     to the queue this task came from."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
     from analysis.services import analysis_run_execute
 
     queue = (self.request.delivery_info or {}).get("routing_key")
@@ -41,6 +42,7 @@ def analysis_run_task(self, run_id: int) -> str:
 def analysis_chunk_task(self, run_id: int, index: int) -> str:
     """Analyse chunk ``index`` of run ``run_id`` and store its outputs; the last chunk
     stored sends the final step to the queue this task came from."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
     from analysis.services import analysis_chunk_execute
 
     queue = (self.request.delivery_info or {}).get("routing_key")
@@ -52,6 +54,7 @@ def analysis_chunk_task(self, run_id: int, index: int) -> str:
 @shared_task(**_TASK)
 def analysis_finish_task(run_id: int) -> str:
     """The chord body: compatibility matrices of run ``run_id``, then mark it done."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
     from analysis.services import analysis_run_finish
 
     return analysis_run_finish(run_id=run_id)
@@ -60,6 +63,7 @@ def analysis_finish_task(run_id: int) -> str:
 @shared_task(soft_time_limit=120, time_limit=180)
 def reports_pending_task() -> int:
     """Celery beat: queue the reports of published comparisons that still miss some."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
     from analysis.reports.services import reports_pending_enqueue
 
     return reports_pending_enqueue()
@@ -69,6 +73,7 @@ def reports_pending_task() -> int:
 def jobs_sweep_task() -> dict[str, int]:
     """Celery beat (``JOB_SWEEP_SECONDS``): re-queue analysis runs and raw-data
     recomputations whose worker was lost (heartbeat older than ``JOB_STALE_SECONDS``)."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
     from analysis.services import analysis_sweep
     from labs.raw_services import raw_sweep
 

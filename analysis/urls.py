@@ -1,4 +1,4 @@
-"""Analysis and results pages; included by ``proficiency.coordinator_urls`` (namespace
+"""Analysis and results pages; included by ``coordination.urls`` (namespace
 ``coordinator``).  The results views serve the coordinator and, after publication, the
 participants (``lab_*`` names under ``/results/``)."""
 

@@ -26,6 +26,7 @@ from django.views.decorators.http import require_GET, require_POST
 from analysis import charts
 from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
 from analysis.models import AnalysisRun, AssignedValue, Score
+from analysis.publication import comparison_publish
 from analysis.selectors import (
     EXACT_MAX,
     approximate_subsets,
@@ -36,14 +37,14 @@ from analysis.selectors import (
     run_scores,
 )
 from analysis.services import analysis_run_cancel, analysis_run_start
-from labs.selectors import participant_for_user
-from proficiency.coordinator_views import POINT_ORDER, coordinated
-from proficiency.errors import ApplicationError, NotVisible
+from common.errors import ApplicationError
+from labs.access import coordinated, published_participation
+from labs.importers import write_table
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
-from proficiency.services import comparison_publish
+from proficiency.selectors import POINT_ORDER
 
 if TYPE_CHECKING:
-    from proficiency.http import AuthenticatedHttpRequest
+    from common.http import AuthenticatedHttpRequest
 
 COORDINATOR, PARTICIPANT = "coordinator", "participant"
 R = AnalysisRun.Status
@@ -92,13 +93,8 @@ def _viewer(request: AuthenticatedHttpRequest, code: str, audience: str) -> View
     if audience == COORDINATOR:
         comparison = coordinated(request, code)
         return Viewer(comparison, _chosen_run(comparison, request.GET.get("run", "")), audience)
-    try:
-        participant = participant_for_user(code=code, user=request.user)
-    except NotVisible as exc:
-        raise Http404(exc.message) from None
+    participant = published_participation(request, code)
     comparison = participant.comparison
-    if comparison.status != ComparisonStatus.PUBLISHED:
-        raise Http404(f"The results of {code} are not published yet.")
     return Viewer(comparison, current_run(comparison), audience, own_code=participant.code)
 
 
@@ -305,8 +301,6 @@ def scores_download(
     request: AuthenticatedHttpRequest, code: str, fmt: str, audience: str
 ) -> HttpResponse:
     """The (filtered) scores as CSV or XLSX; formula-like cells are escaped by write_table."""
-    from labs.importers import write_table
-
     if fmt not in CONTENT_TYPES:
         raise Http404("Scores come as .csv or .xlsx.")
     viewer = _viewer(request, code, audience)

@@ -45,7 +45,7 @@ def admin_sql(sql: str) -> None:
 def setup_django() -> None:
     os.environ["DATABASE_URL"] = SCRATCH_URL
     os.environ["CELERY_BROKER_URL"] = BROKER
-    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "proficiency.settings")
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings")
     sys.path.insert(0, str(ROOT))
     import django
 
@@ -142,7 +142,7 @@ def start_workers(n: int, queue: str, chunk: int, quiet: bool = False) -> list[s
                         "ANALYSIS_CHUNK_RESULTS": str(chunk), "DEBUG": "false",
                         "EMAIL_URL": os.environ.get("EMAIL_URL", "dummymail://"),
                         "SECRET_KEY": f"bench-{uuid.uuid4().hex}"}  # fmt: skip
-    cmd = [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-P", "solo",
+    cmd = [sys.executable, "-m", "celery", "-A", "config", "worker", "-P", "solo",
            "-Q", queue, "--loglevel=WARNING", "--without-gossip", "--without-mingle",
            "--without-heartbeat"]  # fmt: skip
     out = subprocess.DEVNULL if quiet else None
@@ -153,7 +153,7 @@ def start_workers(n: int, queue: str, chunk: int, quiet: bool = False) -> list[s
 
 
 def wait_ready(n: int, timeout: float = 60) -> None:
-    from proficiency.celery import app
+    from config.celery import app
 
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -246,7 +246,7 @@ def run_analysis(
 
     from analysis.models import AnalysisRun, Score
     from analysis.services import analysis_run_start
-    from proficiency.celery import app
+    from config.celery import app
     from proficiency.models import Comparison
 
     queue = f"bench-{uuid.uuid4().hex[:6]}"

@@ -58,7 +58,7 @@ def child_env(db_url: str) -> dict[str, str]:
         "EMAIL_URL": os.environ.get("EMAIL_URL", "dummymail://"),
         "SECRET_KEY": "bench-only-not-a-secret-bench-only-not-a-secret",
         "LOG_LEVEL": "WARNING",
-        "DJANGO_SETTINGS_MODULE": "proficiency.settings",
+        "DJANGO_SETTINGS_MODULE": "config.settings",
     }
 
 

@@ -68,7 +68,7 @@ def server_env(db_url: str) -> dict[str, str]:
 
 def setup_django(db_url: str) -> None:
     os.environ.update(server_env(db_url))
-    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "proficiency.settings")
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings")
     sys.path.insert(0, str(ROOT))
     import django
 

@@ -67,7 +67,7 @@ def require_loopback(url: str, what: str) -> None:
 def setup(fixture: Path) -> dict:
     """Build the scenario's data and write the fixture file; returns its content."""
     sys.path.insert(0, str(ROOT))
-    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "proficiency.settings")
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings")
     import django
 
     django.setup()

@@ -56,7 +56,7 @@ def setup_django() -> None:
     os.environ["DEBUG"] = "false"
     os.environ.setdefault("EMAIL_URL", "dummymail://")  # DEBUG off needs one; send nothing
     os.environ.setdefault("SECRET_KEY", uuid.uuid4().hex * 2)
-    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "proficiency.settings")
+    os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings")
     sys.path.insert(0, str(ROOT))
     import django
 
@@ -113,7 +113,7 @@ def analyse_and_publish(comparison_id: int) -> None:
     """Analyse in this process (eager), then mark published (no e-mails, no fan-out)."""
     from analysis.selectors import current_run
     from analysis.services import analysis_run_start
-    from proficiency.celery import app
+    from config.celery import app
     from proficiency.models import Comparison
 
     app.conf.task_always_eager = True
@@ -164,7 +164,7 @@ def clear_reports(comparison_id: int) -> None:
 
 def start_workers(n: int, queue: str) -> list[subprocess.Popen]:
     env = os.environ | {"MEDIA_ROOT": str(MEDIA), "CELERY_TASK_ALWAYS_EAGER": "false"}
-    cmd = [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-P", "solo", "-Q",
+    cmd = [sys.executable, "-m", "celery", "-A", "config", "worker", "-P", "solo", "-Q",
            queue, "--loglevel=WARNING", "--without-gossip", "--without-mingle",
            "--without-heartbeat"]  # fmt: skip
     workers = [
@@ -202,7 +202,7 @@ def issue_with_workers(
     from analysis.models import Report
     from analysis.reports.services import report_batches, report_jobs
     from analysis.reports.tasks import report_issue_batch_task, report_issue_task
-    from proficiency.celery import app
+    from config.celery import app
     from proficiency.models import Comparison
 
     clear_reports(comparison_id)

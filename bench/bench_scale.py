@@ -215,7 +215,7 @@ def issue_reports(comparison_id: int, jobs: tuple[int, list[int]], n_workers: in
 
     from analysis.models import Report
     from analysis.reports.tasks import report_issue_batch_task
-    from proficiency.celery import app
+    from config.celery import app
 
     run_id, ids = jobs
     size = getattr(settings, "REPORTS_BATCH_SIZE", 25)

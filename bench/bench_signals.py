@@ -169,13 +169,13 @@ def _start_workers(n: int) -> list:
     import uuid
 
     env = os.environ | {"DEBUG": "false", "SECRET_KEY": f"bench-{uuid.uuid4().hex}"}
-    cmd = [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-P", "solo",
+    cmd = [sys.executable, "-m", "celery", "-A", "config", "worker", "-P", "solo",
            "--loglevel=WARNING", "--without-gossip", "--without-mingle",
            "--without-heartbeat"]  # fmt: skip
     root = Path(__file__).resolve().parents[1]
     names = [f"rawbench{i}@%h" for i in range(n)]
     procs = [subprocess.Popen([*cmd, "-n", name], cwd=root, env=env) for name in names]
-    from proficiency.celery import app
+    from config.celery import app
 
     deadline = time.monotonic() + 60
     while len(app.control.ping(timeout=0.5) or []) < n:
@@ -196,7 +196,7 @@ def task_path(n: int, seconds: float, database_url: str, args: argparse.Namespac
             "DATABASE_URL": database_url,
             "CELERY_BROKER_URL": args.broker_url,
             "MEDIA_ROOT": media,
-            "DJANGO_SETTINGS_MODULE": "proficiency.settings",
+            "DJANGO_SETTINGS_MODULE": "config.settings",
         }
     )
     import django

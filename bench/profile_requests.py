@@ -51,7 +51,7 @@ def main() -> None:
         ALLOWED_HOSTS="127.0.0.1,localhost", SECURE_SSL_REDIRECT="false",
         SESSION_COOKIE_SECURE="false", CSRF_COOKIE_SECURE="false",
         CONN_MAX_AGE=os.environ.get("CONN_MAX_AGE", "60"),
-        DJANGO_SETTINGS_MODULE="proficiency.settings",
+        DJANGO_SETTINGS_MODULE="config.settings",
     )  # fmt: skip
     import django
 

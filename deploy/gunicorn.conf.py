@@ -42,7 +42,7 @@ class SlowClientThreadWorker(ThreadWorker):
         self._wrap_future(future, conn)
 
 
-wsgi_app = "proficiency.wsgi:application"
+wsgi_app = "config.wsgi:application"
 bind = os.environ.get("GUNICORN_BIND", "127.0.0.1:8000").split(",")
 workers = max(2, int(os.environ.get("WEB_CONCURRENCY", multiprocessing.cpu_count() * 2 + 1)))
 worker_class = SlowClientThreadWorker
@@ -72,11 +72,11 @@ logconfig_dict = {
     "version": 1,
     "disable_existing_loggers": False,
     "formatters": {
-        "json": {"()": "proficiency.logs.JsonFormatter"},
+        "json": {"()": "common.logs.JsonFormatter"},
         "plain": {"format": "%(asctime)s %(levelname)s %(name)s %(message)s"},
     },
     # a client cut at the read timeout: one INFO line, not a traceback
-    "filters": {"client_timeout": {"()": "proficiency.logs.ClientTimeoutFilter"}},
+    "filters": {"client_timeout": {"()": "common.logs.ClientTimeoutFilter"}},
     "handlers": {
         "console": {
             "class": "logging.StreamHandler",

@@ -37,7 +37,7 @@ def environment() -> dict[str, str]:
     if env.get("ENV_FILE"):
         env.update({k: v for k, v in read_env_file(Path(env["ENV_FILE"])).items() if k not in env})
     env.setdefault("DEBUG", "false")
-    env.setdefault("DJANGO_SETTINGS_MODULE", "proficiency.settings")
+    env.setdefault("DJANGO_SETTINGS_MODULE", "config.settings")
     env["PYTHONUNBUFFERED"] = "1"
     missing = [name for name in REQUIRED if not env.get(name)]
     if missing:
@@ -63,9 +63,9 @@ def commands(state_dir: str) -> dict[str, list[str]]:
     python = sys.executable
     return {
         "web": [str(BIN / "gunicorn"), "-c", str(ROOT / "deploy" / "gunicorn.conf.py")],
-        "worker": [python, "-m", "celery", "-A", "proficiency", "worker", "-l", "INFO"],
+        "worker": [python, "-m", "celery", "-A", "config", "worker", "-l", "INFO"],
         "beat": [
-            python, "-m", "celery", "-A", "proficiency", "beat", "-l", "INFO",
+            python, "-m", "celery", "-A", "config", "beat", "-l", "INFO",
             "--schedule", os.path.join(state_dir, "celerybeat-schedule"),
         ],
     }  # fmt: skip

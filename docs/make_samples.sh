@@ -15,7 +15,8 @@ unset CELERY_BROKER_URL
 from analysis.models import Report
 from analysis.services import analysis_run_start
 from proficiency.models import Comparison, ComparisonStatus
-from proficiency.services import comparison_publish, comparison_transition
+from analysis.publication import comparison_publish
+from proficiency.services import comparison_transition
 c = Comparison.objects.get(code='IMU-2024-DEMO')
 if c.status == ComparisonStatus.OPEN:
     comparison_transition(comparison=c, to=ComparisonStatus.CLOSED)

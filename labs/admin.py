@@ -3,6 +3,7 @@ from django.db.models import Model
 from django.http import HttpRequest
 from rest_framework_api_key.admin import APIKeyModelAdmin
 
+from common.admin_site import RecordedByServicesAdmin
 from labs.models import (
     LabAPIKey,
     Laboratory,
@@ -15,7 +16,6 @@ from labs.models import (
     Submission,
     SubmissionKey,
 )
-from proficiency.admin_site import RecordedByServicesAdmin
 
 
 @admin.register(Laboratory)

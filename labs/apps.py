@@ -6,6 +6,7 @@ class LabsConfig(AppConfig):
     verbose_name = "Laboratories"
 
     def ready(self) -> None:
+        # in ready(): the models (and auditlog's) need the app registry
         from auditlog.registry import auditlog
 
         from labs import models

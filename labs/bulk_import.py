@@ -36,13 +36,13 @@ from django.db import connections, router, transaction
 from django.db.models import Max
 from django.utils import timezone
 
+from common.errors import NotVisible, StateConflict, ValidationFailed
 from labs.importers import ImportErrors, PointKey, ResultRow, RowError, TableContext
 from labs.importers.errors import MAX_LISTED_ERRORS, more_problems
 from labs.importers.stream import Chunk, read_chunks
 from labs.models import Participant, Result, Submission
 from labs.selectors import table_context
 from labs.services import results_insert, results_sql
-from proficiency.errors import NotVisible, StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus
 
 CHUNK_ROWS = 50_000

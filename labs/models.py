@@ -10,8 +10,8 @@ from django.db.models import F, Q
 from django.db.models.functions import NullIf
 from rest_framework_api_key.models import AbstractAPIKey, APIKeyManager
 
+from common.rows import JoinedQuery, ModelColumns
 from proficiency.models import Comparison, MeasurementPoint, finite_positive
-from proficiency.rows import JoinedQuery, ModelColumns
 
 
 class Laboratory(models.Model):
@@ -224,7 +224,7 @@ class LabAPIKeyManager(APIKeyManager):
         """The library's lookup (a usable, i.e. not revoked, key with this prefix whose hash
         matches; ``DoesNotExist`` otherwise), read from the database at every call as
         before, with its laboratory, in one SQL statement written once
-        (:mod:`proficiency.rows`) instead of one compiled by the ORM per request."""
+        (:mod:`common.rows`) instead of one compiled by the ORM per request."""
         prefix = key.partition(".")[0]
         if LabAPIKeyManager._usable_by_prefix is None:
             LabAPIKeyManager._usable_by_prefix = JoinedQuery(
@@ -329,7 +329,7 @@ class RawRecomputation(models.Model):
     failed``); one per record, so a task delivered twice cannot store two results.
 
     Lost workers: the claim (``claimed_by``, the Celery task id, and ``started_at``) and
-    the heartbeat follow the analysis runs' protocol (``proficiency.jobs``): a row silent
+    the heartbeat follow the analysis runs' protocol (``common.jobs``): a row silent
     for ``JOB_STALE_SECONDS`` is re-queued by the sweep and may be taken over.
 
     ``axes`` holds every axis of the record (``pt_sensitivity --format json``); the

@@ -25,7 +25,9 @@ from analysis.core.signals.records import (
     read_csv,
     read_int16,
 )
-from analysis.core.signals.sinefit import fit_known_frequency
+from analysis.core.signals.sinefit import centred_index, fit_known_frequency
+from common.errors import RequestTooLarge
+from labs.importers.values import human_size
 
 #: form fields that are metadata keys (docs/interfaces.md §2); lists and objects come as JSON
 META_NUMBERS = (
@@ -117,8 +119,6 @@ def fit_figure_svg(record: Record, axis: str, frequency_hz: float, fs_hz: float)
 def _model(amp: np.ndarray, phase: np.ndarray, offset: float, nu: float, n: int) -> np.ndarray:
     """Reconstruct the fit; the same convention as the fit's own residuals (checked by a
     test: the model must match the samples of a clean record)."""
-    from analysis.core.signals.sinefit import centred_index
-
     k = centred_index(n)
     out = np.full(n, offset)
     for h, a, p in zip(PLOT_HARMONICS, amp, phase, strict=True):
@@ -129,7 +129,7 @@ def _model(amp: np.ndarray, phase: np.ndarray, offset: float, nu: float, n: int)
 class RawUploadLimit:
     """Upload handler (put first) that stops a multipart body as soon as one file in it
     passes ``limit`` bytes: the limit holds also when Content-Length is absent or lies.
-    Raises :class:`~proficiency.errors.RequestTooLarge` (413)."""
+    Raises :class:`~common.errors.RequestTooLarge` (413)."""
 
     chunk_size = 64 * 1024
 
@@ -146,9 +146,6 @@ class RawUploadLimit:
         self.received, self.name = 0, file_name
 
     def receive_data_chunk(self, raw_data: bytes, start: int) -> bytes:
-        from labs.importers.values import human_size
-        from proficiency.errors import RequestTooLarge
-
         self.received += len(raw_data)
         if self.received > self.limit:
             raise RequestTooLarge(

@@ -8,9 +8,9 @@ from typing import cast
 from django.db.models import QuerySet
 
 from analysis.core.signals.records import Record
+from common.errors import NotVisible
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord
-from labs.raw import read_record
-from proficiency.errors import NotVisible
+from labs.raw import fit_figure_svg, read_record
 from proficiency.models import MeasurementPoint
 
 # --- reads -------------------------------------------------------------------------------
@@ -57,8 +57,6 @@ def _bytes(raw: RawFile) -> bytes:
 def raw_record_figure(record: RawRecord) -> str | None:
     """SVG of a stretch of the point's axis with the fitted sine at the rate found; None
     until the recomputation has succeeded."""
-    from labs.raw import fit_figure_svg
-
     row = getattr(record, "recomputation", None)
     if row is None or row.status != RawRecomputation.Status.SUCCEEDED or row.fs_hz is None:
         return None

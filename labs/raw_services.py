@@ -26,21 +26,26 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from celery import uuid
 from django.conf import settings
 from django.contrib.auth.models import User
 from django.core.files.base import ContentFile
 from django.db import IntegrityError, connection, transaction
 from django.db.models import Q
 from django.utils import timezone
+from kombu.exceptions import OperationalError
 
 import proficiency
 from analysis.core.groups import CoreInputError
+from analysis.core.signals.records import SignalInputError
 from analysis.core.signals.sensitivity import record_sensitivity
+from common.errors import RequestTooLarge, ValidationFailed
+from common.jobs import heartbeat, stale_before
+from labs.importers.values import human_size
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord, Result, Submission
-from labs.raw import read_record
+from labs.raw import form_metadata, read_record, sidecar_json
 from labs.raw_selectors import raw_record_read
-from proficiency.errors import RequestTooLarge, ValidationFailed
-from proficiency.jobs import heartbeat, stale_before
+from labs.tasks import raw_recompute_task
 from proficiency.models import MeasurementPoint
 
 log = logging.getLogger(__name__)
@@ -59,15 +64,11 @@ class Upload:
 
 
 def human_limit() -> str:
-    from labs.importers.values import human_size
-
     return human_size(settings.RAW_UPLOAD_MAX_BYTES)
 
 
 def check_size(size: int, what: str) -> None:
     if size > settings.RAW_UPLOAD_MAX_BYTES:
-        from labs.importers.values import human_size
-
         raise RequestTooLarge(
             f"The {what} is {human_size(size)}; the limit for raw records is {human_limit()}."
         )
@@ -83,8 +84,6 @@ def raw_request_limit() -> int:
 
 def raw_declared_too_large(meta: Mapping[str, Any]) -> str | None:
     """The 413 message when the declared Content-Length alone is over the limit."""
-    from labs.importers.values import human_size
-
     try:
         length = int(meta.get("CONTENT_LENGTH") or 0)
     except ValueError:
@@ -233,8 +232,6 @@ def raw_record_upload(
 
 
 def _recomputation_create(record: RawRecord, result: Result) -> RawRecomputation:
-    from labs.tasks import raw_recompute_task
-
     recomputation = RawRecomputation.objects.create(
         record=record,
         method=METHOD,
@@ -319,11 +316,6 @@ def raw_sweep() -> int:
     ones whose message was lost, running ones whose worker was lost).  Each is decided by
     a conditional UPDATE that moves the heartbeat to now and names the task sent, which
     may then take the claim over: two sweeps at once send it once.  The number sent."""
-    from celery import uuid
-    from kombu.exceptions import OperationalError
-
-    from labs.tasks import raw_recompute_task
-
     stale = stale_before()
     silent = Q(heartbeat_at__lt=stale) | Q(heartbeat_at__isnull=True, created_at__lt=stale)
     rows = RawRecomputation.objects.filter(silent, status__in=(R.PENDING, R.RUNNING))
@@ -401,9 +393,6 @@ def raw_upload_build(
 ) -> Upload:
     """An :class:`Upload` from an uploaded file, its optional JSON sidecar and the metadata
     form fields (which replace sidecar keys); 400 naming ``field`` on bad metadata."""
-    from analysis.core.signals.records import SignalInputError
-    from labs.raw import form_metadata, sidecar_json
-
     check_size(file.size, f"file {file.name!r}")
     try:
         meta = sidecar_json(sidecar.read(), sidecar.name) if sidecar is not None else {}

@@ -10,9 +10,9 @@ from auditlog.models import LogEntry
 from django.contrib.auth.models import User
 from django.core.mail import send_mail
 
+from common.errors import ValidationFailed
 from labs.models import Membership, Result, Submission
 from labs.services import submission_transition
-from proficiency.errors import ValidationFailed
 
 DECISIONS = {"accept": Submission.Status.ACCEPTED, "reject": Submission.Status.REJECTED}
 

@@ -7,11 +7,11 @@ from dataclasses import dataclass
 from django.contrib.auth.models import AnonymousUser, User
 from django.db.models import Count, Max, OuterRef, QuerySet, Subquery
 
+from common.errors import NotVisible
+from common.rows import JoinedQuery, ModelColumns
 from labs.importers import COLUMNS, PointKey, ResultRow, TableContext, write_table
 from labs.models import Laboratory, Participant, Result, Submission
-from proficiency.errors import NotVisible
 from proficiency.models import Comparison, MeasurementPoint
-from proficiency.rows import JoinedQuery, ModelColumns
 
 
 def current_submissions(
@@ -151,7 +151,7 @@ def lab_comparisons(laboratory: Laboratory) -> QuerySet[Comparison]:
 def participant_for_lab(*, code: str, laboratory: Laboratory) -> Participant:
     """The laboratory's participation in comparison ``code``; NotVisible (404) when the
     comparison does not exist or the laboratory does not take part (no existence leak)."""
-    # One SQL statement written once (proficiency.rows): this runs on every API request
+    # One SQL statement written once (common.rows): this runs on every API request
     # of a laboratory, and compiling it with the ORM cost more than running it.
     rows = _PARTICIPANT_BY_CODE.fetch([code, laboratory.pk])
     if not rows:

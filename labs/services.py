@@ -14,6 +14,7 @@ from django.db import IntegrityError, connections, router, transaction
 from django.db.backends.base.base import BaseDatabaseWrapper
 from django.utils import timezone
 
+from common.errors import InvalidTransition, KeyReused, StateConflict, ValidationFailed
 from labs.importers import (
     ImportErrors,
     PointKey,
@@ -24,7 +25,6 @@ from labs.importers import (
 )
 from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission, SubmissionKey
 from labs.selectors import ComparisonTable, comparison_table
-from proficiency.errors import InvalidTransition, KeyReused, StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus
 
 CODE_PREFIX = "L"

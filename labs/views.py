@@ -23,25 +23,28 @@ from django.views.decorators.csrf import csrf_exempt, csrf_protect
 from django.views.decorators.http import require_GET, require_http_methods
 from django_htmx.http import HttpResponseClientRedirect
 
+from common.errors import NotVisible, RequestTooLarge, StateConflict, ValidationFailed
+from common.middleware import validates_own_text
 from labs import services
+from labs.access import comparisons_visible_to, managed_lab, managed_labs, participant_page
 from labs.forms import APIKeyCreateForm, ResultGridForm, ResultUploadForm
 from labs.importers.values import human_size
-from labs.models import LabAPIKey, Laboratory, Membership, Participant, Result, Submission
+from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission
+from labs.raw import RawUploadLimit
+from labs.raw_forms import RawUploadForm
+from labs.raw_selectors import raw_point_choices, raw_record_figure, raw_record_get, raw_records_of
+from labs.raw_services import human_limit, raw_declared_too_large, raw_upload_submit
 from labs.selectors import (
     comparison_points,
-    participant_for_user,
     participant_submissions,
     user_laboratories,
 )
 from labs.selectors import results_template as template_bytes
 from proficiency import protocols
-from proficiency import views as proficiency_views
-from proficiency.errors import NotVisible, StateConflict, ValidationFailed
-from proficiency.middleware import validates_own_text
 from proficiency.models import Comparison
 
 if TYPE_CHECKING:
-    from proficiency.http import AuthenticatedHttpRequest
+    from common.http import AuthenticatedHttpRequest
 
 CONTENT_TYPES = {
     "csv": "text/csv; charset=utf-8",
@@ -50,13 +53,6 @@ CONTENT_TYPES = {
 
 
 # --- lookups (404 for anything that is not the user's) ------------------------------------
-
-
-def _participant(request: HttpRequest, code: str) -> Participant:
-    try:
-        return participant_for_user(code=code, user=request.user)
-    except NotVisible as exc:
-        raise Http404(exc.message) from None
 
 
 def _participations(request: HttpRequest) -> QuerySet[Participant]:
@@ -71,16 +67,6 @@ def _participations(request: HttpRequest) -> QuerySet[Participant]:
         )
         .order_by("laboratory__name", "-comparison__created_at", "comparison__code")
     )
-
-
-def _managed_lab(request: AuthenticatedHttpRequest, lab_pk: int) -> Laboratory:
-    """A laboratory the user manages; 404 for staff and outsiders (not visible to them)."""
-    lab = Laboratory.objects.filter(
-        pk=lab_pk, members__user=request.user, members__role=Membership.Role.MANAGER
-    ).first()
-    if lab is None:
-        raise Http404("No laboratory whose API keys you manage.")
-    return lab
 
 
 def _submission(participant: Participant, version: int) -> Submission:
@@ -113,7 +99,12 @@ def home(request: HttpRequest) -> HttpResponse:
     """``/``: a lab member's dashboard; the public landing page for everyone else."""
     if user_laboratories(request.user).exists():
         return dashboard(request)
-    return proficiency_views.home(request)
+    comparisons = comparisons_visible_to(request.user).order_by("code")
+    return render(
+        request,
+        "home.html",
+        {"comparisons": comparisons, "provider": settings.PT_PROVIDER_NAME},
+    )
 
 
 @login_required
@@ -125,7 +116,7 @@ def dashboard(request: HttpRequest) -> HttpResponse:
 @login_required
 @require_GET
 def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
-    participant = _participant(request, code)
+    participant = participant_page(request, code)
     comparison = participant.comparison
     context = {
         "participant": participant,
@@ -190,7 +181,7 @@ def _grid_save(
 @login_required
 @require_http_methods(["GET", "POST"])
 def results_grid(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
-    participant = _participant(request, code)
+    participant = participant_page(request, code)
     form = _grid_form(participant, request.POST if request.method == "POST" else None)
     if request.method == "POST":
         if not form.is_valid():
@@ -221,7 +212,7 @@ def _grid_saved(request: AuthenticatedHttpRequest, participant: Participant) -> 
 @login_required
 @require_http_methods(["GET", "POST"])
 def results_upload(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
-    participant = _participant(request, code)
+    participant = participant_page(request, code)
     form = ResultUploadForm(request.POST or None, request.FILES or None)
     report: ValidationFailed | None = None
     if request.method == "POST" and form.is_valid():
@@ -259,7 +250,7 @@ def results_template(request: AuthenticatedHttpRequest, code: str, fmt: str) -> 
     """The comparison's measurement points as a results table with empty values to fill in."""
     if fmt not in CONTENT_TYPES:
         raise Http404("The template comes as .csv or .xlsx.")
-    participant = _participant(request, code)
+    participant = participant_page(request, code)
     comparison = participant.comparison
     data = template_bytes(comparison, format=fmt)
     response = HttpResponse(data, content_type=CONTENT_TYPES[fmt])
@@ -274,7 +265,7 @@ def results_template(request: AuthenticatedHttpRequest, code: str, fmt: str) -> 
 @login_required
 @require_GET
 def submission_history(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
-    participant = _participant(request, code)
+    participant = participant_page(request, code)
     context = {
         "participant": participant,
         "comparison": participant.comparison,
@@ -295,7 +286,7 @@ def _page(request: HttpRequest, items: QuerySet) -> Page:
 @login_required
 @require_GET
 def submission_detail(request: AuthenticatedHttpRequest, code: str, version: int) -> HttpResponse:
-    participant = _participant(request, code)
+    participant = participant_page(request, code)
     submission = _submission(participant, version)
     context = {
         "participant": participant,
@@ -314,11 +305,7 @@ def submission_detail(request: AuthenticatedHttpRequest, code: str, version: int
 @require_GET
 def api_keys_index(request: AuthenticatedHttpRequest) -> HttpResponse:
     """``/lab/api-keys/``: the key page of the (first) laboratory the user manages."""
-    lab = (
-        Laboratory.objects.filter(members__user=request.user, members__role=Membership.Role.MANAGER)
-        .order_by("name")
-        .first()
-    )
+    lab = managed_labs(request.user).order_by("name").first()
     if lab is None:
         raise Http404("No laboratory whose API keys you manage.")
     return redirect("labs:api_keys", lab_pk=lab.pk)
@@ -334,7 +321,7 @@ def _keys_page(request: HttpRequest, lab: Laboratory, form: APIKeyCreateForm) ->
 @require_http_methods(["GET", "POST"])
 def api_keys(request: AuthenticatedHttpRequest, lab_pk: int) -> HttpResponse:
     """List the laboratory's keys; POST creates one and shows it once (never again)."""
-    lab = _managed_lab(request, lab_pk)
+    lab = managed_lab(request, lab_pk)
     form = APIKeyCreateForm(request.POST or None)
     if request.method == "POST" and form.is_valid():
         try:
@@ -353,7 +340,7 @@ def api_keys(request: AuthenticatedHttpRequest, lab_pk: int) -> HttpResponse:
 @require_http_methods(["GET", "POST"])
 def api_key_revoke(request: AuthenticatedHttpRequest, lab_pk: int, prefix: str) -> HttpResponse:
     """GET asks for confirmation; POST revokes (the key stays listed, marked revoked)."""
-    lab = _managed_lab(request, lab_pk)
+    lab = managed_lab(request, lab_pk)
     key = LabAPIKey.objects.filter(laboratory=lab, prefix=prefix).first()
     if key is None:
         raise Http404("No such API key in your laboratory.")
@@ -370,9 +357,6 @@ def api_key_revoke(request: AuthenticatedHttpRequest, lab_pk: int, prefix: str) 
 def _raw_page(
     request: HttpRequest, participant: Participant, form: object, error: str = ""
 ) -> HttpResponse:
-    from labs.raw_selectors import raw_records_of
-    from labs.raw_services import human_limit
-
     context = {
         "participant": participant,
         "comparison": participant.comparison,
@@ -390,14 +374,9 @@ def _raw_page(
 @require_http_methods(["GET", "POST"])
 def raw_data(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     """The laboratory's raw records for ``code`` and the form to attach one."""
-    from labs.raw import RawUploadLimit
-    from labs.raw_forms import RawUploadForm
-    from labs.raw_selectors import raw_point_choices
-    from labs.raw_services import raw_declared_too_large
-
     too_large = raw_declared_too_large(request.META) if request.method == "POST" else None
     if too_large:  # refused on the declared size, before anything reads the body
-        participant = _participant(request, code)
+        participant = participant_page(request, code)
         form = RawUploadForm(points=raw_point_choices(participant))
         return _raw_page(request, participant, form, too_large)
     if request.method == "POST":
@@ -410,12 +389,7 @@ def raw_data(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
 
 @csrf_protect
 def _raw_data(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
-    from labs.raw_forms import RawUploadForm
-    from labs.raw_selectors import raw_point_choices
-    from labs.raw_services import raw_upload_submit
-    from proficiency.errors import RequestTooLarge
-
-    participant = _participant(request, code)
+    participant = participant_page(request, code)
     points = raw_point_choices(participant)
     try:
         form = RawUploadForm(request.POST or None, request.FILES or None, points=points)
@@ -433,9 +407,7 @@ def _raw_data(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
 @require_GET
 def raw_record(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
     """One raw record: reported vs recomputed sensitivity, En, fs found, record with fit."""
-    from labs.raw_selectors import raw_record_figure, raw_record_get, raw_records_of
-
-    participant = _participant(request, code)
+    participant = participant_page(request, code)
     try:
         record = raw_record_get(raw_records_of(participant), pk)
     except NotVisible as exc:

@@ -1,6 +1,3 @@
-"""Proficiency-testing service: Django project and the comparison domain."""
+"""The comparison domain: comparisons, devices, measurement points, reference values."""
 
-from proficiency.celery import app as celery_app
-
-__all__ = ["celery_app"]
 __version__ = "0.1.0"

@@ -6,6 +6,7 @@ class ProficiencyConfig(AppConfig):
     verbose_name = "Comparisons"
 
     def ready(self) -> None:
+        # in ready(): the models (and auditlog's) need the app registry
         from auditlog.registry import auditlog
 
         from proficiency import models

@@ -31,7 +31,7 @@ def celery_eager(request):
     if "real_worker" in request.keywords or not request.config.pluginmanager.hasplugin("django"):
         yield
         return
-    from proficiency.celery import app
+    from config.celery import app
 
     old = app.conf.task_always_eager
     app.conf.task_always_eager = True

@@ -13,7 +13,6 @@ from django.contrib.auth.models import User
 from django.db.models import QuerySet
 from drf_spectacular.utils import OpenApiParameter, extend_schema
 from rest_framework import generics, serializers, status
-from rest_framework.exceptions import PermissionDenied
 from rest_framework.request import Request
 from rest_framework.response import Response
 
@@ -21,15 +20,21 @@ from analysis.api import serializers as s
 from analysis.core.groups import CoreInputError
 from analysis.models import AnalysisRun, Score
 from analysis.pipeline import matrix_record
+from analysis.publication import comparison_publish
 from analysis.selectors import SCORE_FILTERS, current_run, lab_matrices, run_matrices, run_scores
 from analysis.services import analysis_run_cancel, analysis_run_start
-from labs.api.permissions import ComparisonAccess, caller_of, comparisons_for
+from common.errors import NotVisible, StateConflict, ValidationFailed
+from labs.access import (
+    ComparisonAccess,
+    caller_of,
+    comparisons_for,
+    published_or_coordinator,
+    require_coordinator,
+)
 from labs.api.views import ApiView
 from labs.models import Result, Submission
 from labs.review import submission_decide, submission_request_check
-from proficiency.errors import NotVisible, StateConflict, ValidationFailed
-from proficiency.models import ComparisonStatus
-from proficiency.services import comparison_publish, comparison_transition
+from proficiency.services import comparison_transition
 
 FACTORS = ("axis", "frequency", "device", "bench", "direction", "lab")
 POINT_FILTERS = [
@@ -46,18 +51,6 @@ def number(value: str, field: str) -> float:
             f"{field} must be a number, got {value!r}.",
             errors=[{"row": None, "field": field, "message": "must be a number"}],
         ) from None
-
-
-def require_coordinator(access: ComparisonAccess) -> None:
-    if not access.is_coordinator:
-        raise PermissionDenied(f"Only a coordinator of {access.comparison.code} can do this.")
-
-
-def published_or_coordinator(access: ComparisonAccess) -> None:
-    if access.is_coordinator:
-        return
-    if access.comparison.status != ComparisonStatus.PUBLISHED:
-        raise StateConflict(f"The results of {access.comparison.code} are not published yet.")
 
 
 def shown_run(access: ComparisonAccess) -> AnalysisRun:

@@ -14,14 +14,13 @@ from rest_framework import serializers, status
 from rest_framework.request import Request
 from rest_framework.response import Response
 
-from analysis.api.views import require_coordinator
+from analysis.access import download_name, report_for_download, reports_visible
 from analysis.models import Report, ReportDownload
-from analysis.reports.access import download_name, report_for_download, reports_visible
 from analysis.reports.assemble import report_status
 from analysis.reports.services import report_issue, report_notes_update
-from labs.api.permissions import caller_of
+from common.errors import NotVisible
+from labs.access import caller_of, require_coordinator
 from labs.api.views import ApiView, validated
-from proficiency.errors import NotVisible
 from proficiency.models import Comparison
 
 

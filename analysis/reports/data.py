@@ -274,6 +274,7 @@ class ReportData:
             return self.stats
         cached = self.__dict__.get("_round")
         if cached is None:
+            # here: analysis.reports.rounds imports this module (a cycle)
             from analysis.reports.rounds import stats_of_rows
 
             cached = stats_of_rows(self.points, self.results, self.scores, self.en_limit)

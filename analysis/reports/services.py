@@ -19,6 +19,7 @@ from django.conf import settings
 from django.core.files.base import ContentFile
 from django.db import connections, router, transaction
 from django.db.models import Max
+from kombu.exceptions import OperationalError
 
 import proficiency
 from analysis.bulk import planner_stats_refresh
@@ -35,9 +36,10 @@ from analysis.reports.assemble import (
 from analysis.reports.data import ResultRow, ScoreRow
 from analysis.reports.figures import point_charts_build
 from analysis.reports.render import render_report
+from analysis.reports.tasks import reports_issue_all_task
 from analysis.selectors import current_run
+from common.errors import StateConflict, ValidationFailed
 from labs.models import Participant
-from proficiency.errors import StateConflict, ValidationFailed
 from proficiency.models import Comparison, ComparisonStatus
 
 REPORTABLE = (ComparisonStatus.ANALYSED, ComparisonStatus.PUBLISHED)
@@ -431,10 +433,6 @@ def reports_enqueue(*, comparison_id: int) -> None:
 
 
 def _send_reports_task(comparison_id: int) -> bool:
-    from kombu.exceptions import OperationalError
-
-    from analysis.reports.tasks import reports_issue_all_task
-
     try:
         reports_issue_all_task.delay(comparison_id)
     except (OperationalError, OSError) as exc:

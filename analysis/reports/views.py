@@ -10,12 +10,12 @@ from django.http import Http404, HttpResponse
 from django.shortcuts import render
 from django.urls import path
 
-from analysis.reports.access import reports_visible
-from labs.api.permissions import Caller, comparison_access
-from proficiency.errors import NotVisible
+from analysis.access import reports_visible
+from common.errors import NotVisible
+from labs.access import Caller, comparison_access
 
 if TYPE_CHECKING:
-    from proficiency.http import AuthenticatedHttpRequest
+    from common.http import AuthenticatedHttpRequest
 
 #: every version of every report is kept, so the list grows with each issue
 REPORTS_PER_PAGE = 50

@@ -15,15 +15,15 @@ from rest_framework import generics
 from rest_framework.request import Request
 from rest_framework.response import Response
 
+from common.parsers import FormParser, MultiPartParser
+from labs.access import ComparisonAccess, caller_of, require_participant
 from labs.api import raw_serializers as rs
-from labs.api.permissions import ComparisonAccess, caller_of, require_participant
 from labs.api.views import AUTH_ERRORS, CODE, NOT_VISIBLE, SUBMIT_ERRORS, ApiView, validated
 from labs.api.views import check_content_length as _check_content_length
 from labs.models import RawRecord
 from labs.raw import RawUploadLimit
 from labs.raw_selectors import raw_record_get, raw_records_of, raw_records_of_comparison
 from labs.raw_services import raw_record_upload, raw_request_limit, raw_upload_build
-from proficiency.parsers import FormParser, MultiPartParser
 
 
 def raw_records_in_scope(access: ComparisonAccess) -> QuerySet[RawRecord]:

@@ -11,9 +11,9 @@ from typing import Any
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
+from common.rendering import ValuesRendering
 from labs.models import Result, Submission
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
-from proficiency.rendering import ValuesRendering
 
 # ---------------------------------------------------------------- errors
 

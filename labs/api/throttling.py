@@ -4,7 +4,7 @@ Rates come from ``REST_FRAMEWORK["DEFAULT_THROTTLE_RATES"]`` and are read at
 request time (DRF's throttles read them once at import, which would ignore a
 settings override). Excess requests answer 429 with ``Retry-After``.
 
-With the shared Redis cache (``CACHE_URL=redis://...``, :mod:`proficiency.cache`) a
+With the shared Redis cache (``CACHE_URL=redis://...``, :mod:`common.cache`) a
 bucket is checked and updated by one Lua script, atomically, in one round trip: DRF's
 own ``get`` then ``set`` of the pickled history took two, and two workers serving the
 same key at once could each overwrite the other's request (a request not counted).
@@ -22,8 +22,8 @@ from rest_framework.settings import api_settings
 from rest_framework.throttling import SimpleRateThrottle
 from rest_framework.views import APIView
 
+from common.cache import RedisCache
 from labs.models import LabAPIKey
-from proficiency.cache import RedisCache
 
 #: DRF's SimpleRateThrottle.allow_request on a Redis list (newest first), atomically
 SLIDING_LOG = """

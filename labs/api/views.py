@@ -2,29 +2,33 @@
 
 Errors are raised, never built here: ApplicationError subclasses and DRF's own
 exceptions are turned into ``{"detail", "errors"}`` by
-:func:`proficiency.errors.api_exception_handler`.
+:func:`common.errors.api_exception_handler`.
 """
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import django_filters
 from django.conf import settings
+from django.contrib.auth.models import User
 from django.db.models import QuerySet
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiParameter, OpenApiResponse, extend_schema
-from rest_framework import generics, serializers
+from rest_framework import serializers, status
 from rest_framework.authentication import SessionAuthentication
+from rest_framework.exceptions import PermissionDenied
 from rest_framework.permissions import IsAuthenticated
 from rest_framework.renderers import BaseRenderer, JSONRenderer
 from rest_framework.request import Request
 from rest_framework.response import Response
 from rest_framework.views import APIView
 
-from labs.api import serializers as s
-from labs.api.authentication import LabAPIKeyAuthentication
-from labs.api.permissions import (
+from common.api import ValuesListView, valid_data
+from common.errors import RequestTooLarge, ValidationFailed
+from common.parsers import FormParser, JSONParser, MultiPartParser
+from common.rendering import ValuesRendering
+from labs.access import (
     ComparisonAccess,
     caller_of,
     comparison_access,
@@ -35,16 +39,16 @@ from labs.api.permissions import (
     submission_results,
     submissions_in_scope,
 )
+from labs.api import serializers as s
+from labs.api.authentication import LabAPIKeyAuthentication
 from labs.api.throttling import LabAPIKeyRateThrottle, SessionUserRateThrottle
 from labs.importers.values import human_size
 from labs.models import Submission
 from labs.selectors import results_template
 from labs.services import submission_from_file, submission_from_records
-from proficiency.errors import RequestTooLarge, ValidationFailed
-from proficiency.models import ComparisonStatus, MeasurementPoint
-from proficiency.parsers import FormParser, JSONParser, MultiPartParser
-from proficiency.rendering import ValuesRendering
+from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.serializers import NewComparisonSerializer
+from proficiency.services import comparison_create
 
 #: multipart framing (boundaries, part headers, the submit field) on top of the file itself
 MULTIPART_SLACK_BYTES = 64 * 1024
@@ -140,20 +144,6 @@ class ApiView(APIView):
         return comparison_access(caller_of(self.request), code)
 
 
-class ValuesListView(generics.ListAPIView):
-    """A list whose page is rendered from ``values_list`` rows (:mod:`proficiency.rendering`):
-    the same JSON as ``serializer_class``, without building model instances or fields."""
-
-    rendering: ValuesRendering
-
-    def list(self, request: Request, *args: Any, **kwargs: Any) -> Response:
-        rows = self.rendering.rows(self.filter_queryset(self.get_queryset()))
-        page = self.paginate_queryset(rows)
-        if page is not None:
-            return self.get_paginated_response(self.rendering.render(page))
-        return Response(self.rendering.render(rows))
-
-
 class ComparisonFilter(django_filters.FilterSet):
     status = django_filters.ChoiceFilter(choices=ComparisonStatus.choices)
 
@@ -172,9 +162,16 @@ class ComparisonList(ApiView, ValuesListView):
     @extend_schema(request=NewComparisonSerializer, responses={201: NewComparisonSerializer})
     def post(self, request: Request) -> Response:
         """Create a draft comparison (coordinators); the caller becomes its coordinator."""
-        from proficiency.api import comparison_create_response
-
-        return comparison_create_response(request)
+        user = request.user
+        if not getattr(user, "has_perm", None) or not user.has_perm("proficiency.add_comparison"):
+            raise PermissionDenied("Only coordinators may create comparisons.")
+        data = valid_data(NewComparisonSerializer(data=request.data))
+        template = data.pop("template", "") or None
+        # has_perm passed: a person (keys have no permissions)
+        created = comparison_create(
+            comparison=Comparison(**data), template_key=template, user=cast(User, user)
+        )
+        return Response(NewComparisonSerializer(created).data, status=status.HTTP_201_CREATED)
 
 
 @extend_schema(

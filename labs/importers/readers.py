@@ -353,6 +353,7 @@ def _xlsx_records(
     elements than that. Once ``shape`` knows the header, cells past it are not kept
     (only reported, if not blank).
     """
+    # openpyxl only where a workbook is read: CSV-only callers (pt_compare) never load it
     from openpyxl.utils import get_column_letter
     from openpyxl.worksheet._reader import CELL_TAG, ROW_TAG, WorkSheetParser
     from openpyxl.xml.functions import iterparse

@@ -197,6 +197,7 @@ def _write_csv(names: list[str], table: list[list[object]], *, delimiter: str, b
 
 
 def _write_xlsx(names: list[str], table: list[list[object]]) -> bytes:
+    # openpyxl only where a workbook is written: CSV downloads never load it
     from openpyxl import Workbook
 
     workbook = Workbook(write_only=True)

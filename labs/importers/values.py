@@ -12,6 +12,8 @@ import math
 import re
 from collections.abc import Iterable
 
+from common.sizes import human_size as human_size  # re-exported for the importers' callers
+
 #: A text cell starting with one of these (after spaces) is executed by some spreadsheets
 #: (OWASP CSV injection), the full-width forms by East Asian editions of Excel.
 FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r", "\n", "\uff1d", "\uff0b", "\uff0d", "\uff20")
@@ -209,11 +211,3 @@ def normalise_unit(text: str, extra_units: Iterable[str] = ()) -> str:
 def mg_per_lsb_to_canonical(value: float) -> float:
     """Invert a datasheet sensitivity: S = 1 / (v · 1e-3 · g) in D/(m/s²) (docs/domain.md §2)."""
     return 1.0 / (value * 1e-3 * STANDARD_GRAVITY)
-
-
-def human_size(n_bytes: float) -> str:
-    """``6.2 MB``, ``5 MB``, ``12 kB``, ``300 bytes`` (binary multiples)."""
-    for size, name in ((2**20, "MB"), (2**10, "kB")):
-        if n_bytes >= size:
-            return f"{n_bytes / size:.1f}".removesuffix(".0") + f" {name}"
-    return f"{int(n_bytes)} bytes"

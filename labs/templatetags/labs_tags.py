@@ -11,8 +11,9 @@ from django.db.models import QuerySet
 from django.utils import timezone
 from django.utils.html import format_html
 
+from labs.access import managed_labs
 from labs.importers.values import format_number
-from labs.models import Laboratory, Membership, Submission
+from labs.models import Laboratory, Submission
 from proficiency.models import ComparisonStatus
 from proficiency.protocols import BenchPlan
 
@@ -65,9 +66,7 @@ def local_time(value: dt.datetime | None) -> str:
 @register.simple_tag
 def managed_laboratories(user: User | AnonymousUser) -> QuerySet[Laboratory]:
     """Laboratories whose API keys the user may manage (navigation link)."""
-    if not user.is_authenticated:
-        return Laboratory.objects.none()
-    return Laboratory.objects.filter(members__user=user, members__role=Membership.Role.MANAGER)
+    return managed_labs(user)
 
 
 @register.filter

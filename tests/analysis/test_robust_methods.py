@@ -22,7 +22,7 @@ from analysis.models import AssignedValue, Score
 from analysis.pipeline import AssignedSpec
 from analysis.reports.assemble import method_label
 from analysis.services import analysis_run_start
-from proficiency.forms import PointOverrideForm
+from coordination.forms import PointOverrideForm
 from proficiency.models import AssignedValueMethod, Comparison
 
 HEADER = "lab,device,axis,frequency_hz,bench,direction,sensitivity,expanded_uncertainty"

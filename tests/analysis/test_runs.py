@@ -10,8 +10,8 @@ from django.db import transaction
 from analysis import services
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.services import analysis_run_execute, analysis_run_start
+from common.errors import StateConflict
 from labs.models import Participant
-from proficiency.errors import StateConflict
 from proficiency.models import Comparison
 
 pytestmark = pytest.mark.django_db(transaction=True)

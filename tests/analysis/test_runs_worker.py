@@ -38,7 +38,7 @@ def start_worker(queue: str, name: str, **env_extra: str) -> subprocess.Popen:
     test_db_url = DATABASE_URL.rsplit("/", 1)[0] + "/" + connection.settings_dict["NAME"]
     env = os.environ | {"DATABASE_URL": test_db_url, "CELERY_BROKER_URL": BROKER} | env_extra
     return subprocess.Popen(
-        [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-P", "solo",
+        [sys.executable, "-m", "celery", "-A", "config", "worker", "-P", "solo",
          "-Q", queue, "-n", f"{name}@%h", "--loglevel=WARNING", "--without-heartbeat",
          "--without-gossip", "--without-mingle"],
         cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
@@ -48,7 +48,7 @@ def start_worker(queue: str, name: str, **env_extra: str) -> subprocess.Popen:
 @pytest.fixture
 def workers():
     """Start worker processes on one fresh queue, connected to this test's database."""
-    from proficiency.celery import app
+    from config.celery import app
 
     queue = f"test-{uuid.uuid4().hex[:8]}"
     procs: list[subprocess.Popen] = []

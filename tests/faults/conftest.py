@@ -143,7 +143,7 @@ class Workers:
 
 @pytest.fixture
 def workers() -> Iterator[Workers]:
-    from proficiency.celery import app
+    from config.celery import app
 
     pool = Workers(f"faults-{uuid.uuid4().hex[:8]}")
     old = (app.conf.task_always_eager, app.conf.task_default_queue)
@@ -236,7 +236,7 @@ class Proxy:
 @pytest.fixture
 def broker_proxy() -> Iterator[Proxy]:
     """The test process's Celery producer talks to Redis through a proxy the test cuts."""
-    from proficiency.celery import app
+    from config.celery import app
 
     parts = urlsplit(BROKER)
     proxy = Proxy((parts.hostname or "127.0.0.1", parts.port or 6379))

@@ -16,7 +16,7 @@ from typing import Any
 
 from celery.signals import task_prerun, worker_process_init, worker_ready
 
-from proficiency.celery import app
+from config.celery import app
 
 __all__ = ["app"]
 # tasks sent by the worker itself (a chord, a report group) go to the test's queue too

@@ -6,12 +6,12 @@ import pytest
 from auditlog.models import LogEntry
 from django.core.management import CommandError, call_command
 
+from common.errors import NotVisible, StateConflict
 from labs.bulk_import import ImportRefused, results_import
 from labs.importers import ImportErrors, parse_table, write_table
 from labs.importers.stream import read_chunks
 from labs.models import Result, Submission
 from labs.selectors import current_submissions, table_context
-from proficiency.errors import NotVisible, StateConflict
 from proficiency.services import measurement_points_generate
 from tests.factories import (
     ComparisonFactory,

@@ -3,8 +3,8 @@
 import pytest
 from django.core.management import call_command
 
+from coordination.demo import RAW_BIAS, RAW_DATA_LAB
 from labs.models import RawFile, RawRecomputation, RawRecord
-from proficiency.demo import RAW_BIAS, RAW_DATA_LAB
 
 pytestmark = pytest.mark.django_db
 

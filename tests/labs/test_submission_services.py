@@ -5,9 +5,9 @@ import datetime as dt
 import pytest
 from django.utils import timezone
 
+from common.errors import StateConflict, ValidationFailed
 from labs.models import Result, Submission
 from labs.services import submission_from_file, submission_from_records
-from proficiency.errors import StateConflict, ValidationFailed
 from proficiency.services import measurement_points_generate
 from tests.factories import ComparisonFactory, DeviceFactory, ParticipantFactory, UserFactory
 

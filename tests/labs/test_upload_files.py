@@ -11,9 +11,9 @@ from collections.abc import Mapping, Sequence
 import openpyxl
 import pytest
 
+from common.errors import ValidationFailed
 from labs.models import Result, Submission
 from labs.services import submission_from_file, submission_from_records
-from proficiency.errors import ValidationFailed
 from proficiency.services import measurement_points_generate
 from tests.factories import ComparisonFactory, DeviceFactory, ParticipantFactory, UserFactory
 

@@ -12,8 +12,8 @@ from django.core.cache import cache, caches
 from django.db import connection
 from django.test.utils import CaptureQueriesContext
 
+from common.pagination import CountSparingPaginator
 from labs.models import Submission
-from proficiency.pagination import CountSparingPaginator
 from tests.labs.api import build_world
 
 pytestmark = pytest.mark.django_db
@@ -116,7 +116,7 @@ REDIS_URL = os.environ.get("TEST_REDIS_CACHE_URL", "redis://127.0.0.1:6379/12")
 
 
 def _redis_cache():
-    from proficiency.cache import RedisCache
+    from common.cache import RedisCache
 
     backend = RedisCache(REDIS_URL, {"KEY_PREFIX": f"t{uuid.uuid4().hex[:8]}"})
     try:
@@ -153,7 +153,7 @@ def test_production_settings_pick_the_reusing_backend():
         [sys.executable, "manage.py", "shell", "-c", show],
         cwd=root, env=env, capture_output=True, text=True, check=True,
     ).stdout.strip().splitlines()[-1]  # fmt: skip
-    assert out == "proficiency.cache.RedisCache"
+    assert out == "common.cache.RedisCache"
 
 
 def test_redis_throttle_is_drfs_sliding_log_shared_and_atomic(settings, world, monkeypatch):

@@ -10,8 +10,8 @@ from django.contrib.auth import get_user_model
 from django.core.management import call_command
 from django.db.models import Model
 
+from coordination.demo import DEMO_CODE, OUTLIER_LAB
 from labs.models import Laboratory, Membership, Participant, Result, Submission
-from proficiency.demo import DEMO_CODE, OUTLIER_LAB
 from proficiency.models import Comparison, Device, MeasurementPoint
 
 pytestmark = pytest.mark.django_db

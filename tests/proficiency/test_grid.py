@@ -4,8 +4,8 @@ import math
 
 import pytest
 
+from common.errors import ValidationFailed
 from proficiency import protocols
-from proficiency.errors import ValidationFailed
 from proficiency.models import MeasurementPoint
 from proficiency.services import comparison_apply_template, measurement_points_generate
 from tests.factories import ComparisonFactory, DeviceFactory

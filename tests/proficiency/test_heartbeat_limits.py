@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from proficiency import jobs
+from common import jobs
 
 pytestmark = pytest.mark.django_db(transaction=True)
 

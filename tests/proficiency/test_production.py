@@ -12,8 +12,8 @@ import pytest
 from django.core.management import call_command
 from django.db import OperationalError
 
-from proficiency import health
-from proficiency.logs import JsonFormatter
+from common import health
+from common.logs import JsonFormatter
 
 ROOT = Path(__file__).resolve().parents[2]
 REDIS_URL = os.environ.get("CELERY_BROKER_URL", "")
@@ -71,7 +71,7 @@ def test_healthz_is_503_naming_the_database_and_leaks_no_reason(client, monkeypa
             raise OperationalError('password authentication failed for user "pt-secret-user"')
 
     monkeypatch.setattr(health, "connection", BrokenConnection())
-    with caplog.at_level(logging.ERROR, logger="proficiency.health"):
+    with caplog.at_level(logging.ERROR, logger="common.health"):
         response = client.get("/healthz")
     assert response.status_code == 503
     assert response.json() == {"database": "error", "broker": "ok"}
@@ -404,14 +404,14 @@ def test_gunicorn_config_has_at_least_two_workers_and_json_logs(monkeypatch):
     monkeypatch.setenv("WEB_CONCURRENCY", "1")
     config = runpy.run_path(str(ROOT / "deploy" / "gunicorn.conf.py"))
     assert config["workers"] == 2
-    assert config["wsgi_app"] == "proficiency.wsgi:application"
+    assert config["wsgi_app"] == "config.wsgi:application"
     # threaded workers without keep-alive (tests/proficiency/test_slow_clients.py)
     from gunicorn.workers.gthread import ThreadWorker
 
     assert issubclass(config["worker_class"], ThreadWorker)
     assert (config["threads"], config["keepalive"], config["READ_TIMEOUT"]) == (4, 0, 30.0)
     formatter = config["logconfig_dict"]["formatters"]["json"]["()"]
-    assert formatter == "proficiency.logs.JsonFormatter"
+    assert formatter == "common.logs.JsonFormatter"
 
 
 def test_gunicorn_worker_freezes_what_start_up_allocated():
@@ -440,8 +440,8 @@ def test_housekeeping_deletes_only_what_expired_and_is_scheduled(settings):
     from django.contrib.sessions.models import Session
     from django.utils import timezone
 
-    from proficiency.celery import app
-    from proficiency.tasks import housekeeping
+    from config.celery import app
+    from labs.tasks import housekeeping
 
     now = timezone.now()
     Session.objects.create(session_key="old", session_data="x", expire_date=now - timedelta(1))
@@ -484,7 +484,7 @@ def test_a_real_worker_runs_a_task_from_rabbitmq(tmp_path, monkeypatch):
     env = {**os.environ, "CELERY_BROKER_URL": AMQP_URL, "CELERY_RESULT_BACKEND": "rpc://",
            "DATABASE_URL": f"sqlite:///{tmp_path / 'worker.sqlite3'}"}  # fmt: skip
     worker = subprocess.Popen(
-        [sys.executable, "-m", "celery", "-A", "proficiency", "worker", "-Q", queue,
+        [sys.executable, "-m", "celery", "-A", "config", "worker", "-Q", queue,
          "-n", f"{queue}@%h", "-c", "1", "-P", "solo", "--without-gossip", "--without-mingle"],
         cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
     )  # fmt: skip

@@ -18,11 +18,11 @@ from django.urls import URLPattern, URLResolver, get_resolver
 from django.utils import timezone
 from openpyxl import load_workbook
 
+from common.middleware import MULTIPART_SLACK_BYTES
 from labs.api.throttling import LabAPIKeyRateThrottle, SessionUserRateThrottle
 from labs.importers import write_table
 from labs.importers.values import unescape_text
 from labs.models import Participant, Submission
-from proficiency.middleware import MULTIPART_SLACK_BYTES
 from tests.analysis.reports.conftest import analysed, demo, pdf_text  # noqa: F401 (fixtures)
 from tests.factories import UserFactory
 from tests.labs.api import as_csv, build_world, rows

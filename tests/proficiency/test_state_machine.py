@@ -4,9 +4,9 @@ import itertools
 
 import pytest
 
+from common.errors import InvalidTransition
 from labs.models import Submission
 from labs.services import SUBMISSION_TRANSITIONS, submission_transition
-from proficiency.errors import InvalidTransition
 from proficiency.models import Comparison, ComparisonStatus
 from proficiency.services import COMPARISON_TRANSITIONS, comparison_transition
 from tests.factories import ComparisonFactory, MeasurementPointFactory, SubmissionFactory

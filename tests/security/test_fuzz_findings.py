@@ -76,7 +76,7 @@ def test_lost_database_connection_is_a_clear_503(kind):
     import psycopg
     from django.db import OperationalError
 
-    from proficiency.errors import api_exception_handler
+    from common.errors import api_exception_handler
 
     exc = OperationalError("server closed the connection") if kind == "django" else (
         psycopg.OperationalError("terminating connection due to administrator command")

@@ -2,9 +2,9 @@
 
 from django.core.management.base import BaseCommand, CommandError
 
+from common.errors import ApplicationError
 from labs.models import Laboratory
 from labs.services import api_key_create
-from proficiency.errors import ApplicationError
 
 
 def _laboratory(ref: str) -> Laboratory:

@@ -5,9 +5,9 @@ import time
 from django.contrib.auth import get_user_model
 from django.core.management.base import BaseCommand, CommandError
 
+from common.errors import ApplicationError
 from labs.bulk_import import ImportRefused, results_import
 from labs.importers.errors import more_problems
-from proficiency.errors import ApplicationError
 from proficiency.models import Comparison
 
 

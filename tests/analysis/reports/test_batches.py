@@ -18,8 +18,8 @@ from analysis.reports.services import report_batches, report_issue_batch, report
 from analysis.reports.tasks import report_issue_batch_task, reports_issue_all_task
 from analysis.selectors import current_run
 from analysis.services import analysis_run_start
+from common.errors import ValidationFailed
 from labs.models import Laboratory, Participant, Result, Submission
-from proficiency.errors import ValidationFailed
 from proficiency.models import Comparison, Device
 from proficiency.services import measurement_points_generate
 

@@ -10,6 +10,7 @@ from django.db import connections
 from rest_framework.test import APIClient
 
 from analysis.models import Report
+from analysis.publication import comparison_publish
 from analysis.reports.services import (
     report_issue,
     report_issue_batch,
@@ -18,7 +19,6 @@ from analysis.reports.services import (
 )
 from analysis.reports.tasks import reports_issue_all_task
 from proficiency.models import ComparisonStatus
-from proficiency.services import comparison_publish
 from tests.analysis.reports.conftest import CODE, pdf_text
 
 pytestmark = pytest.mark.django_db(transaction=True)

@@ -8,7 +8,7 @@ import pytest
 from analysis.models import Report
 from analysis.reports.services import report_issue, report_issue_once, reports_issue_all
 from analysis.reports.tasks import report_issue_task
-from proficiency.errors import StateConflict, ValidationFailed
+from common.errors import StateConflict, ValidationFailed
 from tests.analysis.reports.conftest import pdf_text
 
 pytestmark = pytest.mark.django_db(transaction=True)

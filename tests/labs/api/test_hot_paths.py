@@ -15,20 +15,20 @@ from django.utils import timezone
 from rest_framework import serializers
 from rest_framework.renderers import JSONRenderer
 
-from labs.api import serializers as s
-from labs.api.permissions import (
+from common.errors import NotVisible
+from common.rendering import ValuesRendering
+from labs.access import (
     ComparisonAccess,
     measurement_points,
     submission_results,
     submissions_in_scope,
 )
+from labs.api import serializers as s
 from labs.api.views import ComparisonList, MeasurandList, SubmissionCollection
 from labs.models import LabAPIKey, Participant, Submission
 from labs.selectors import participant_for_lab
 from labs.services import api_key_revoke, submission_from_records
-from proficiency.errors import NotVisible
 from proficiency.models import Comparison, Device
-from proficiency.rendering import ValuesRendering
 from tests.labs.api import build_world, rows
 
 pytestmark = pytest.mark.django_db

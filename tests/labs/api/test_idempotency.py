@@ -88,7 +88,7 @@ def test_a_key_older_than_the_retention_is_a_new_request(settings, world, key_a)
 
 @pytest.mark.django_db
 def test_housekeeping_forgets_expired_keys(world, key_a):
-    from proficiency.tasks import housekeeping
+    from labs.tasks import housekeeping
 
     for key in ("kept", "expired"):
         assert post(key_a, {"results": rows(419.0 + len(key))}, key=key).status_code == 201

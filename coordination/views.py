@@ -9,22 +9,19 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter, defaultdict
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING
 
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
+from django.core.paginator import Paginator
 from django.db.models import Count, OuterRef, QuerySet, Subquery
 from django.http import Http404, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
 
-from labs.models import Participant, Result, Submission
-from labs.review import submission_decide, submission_request_check
-from labs.selectors import current_submissions
-from labs.services import participant_add, participant_set_reference
-from proficiency import protocols, services
-from proficiency.errors import ApplicationError
-from proficiency.forms import (
+from analysis.reports.services import report_notes_update
+from common.errors import ApplicationError
+from coordination.forms import (
     ComparisonCreateForm,
     ComparisonForm,
     DecisionForm,
@@ -34,7 +31,15 @@ from proficiency.forms import (
     PointOverrideForm,
     ReportNotesForm,
 )
+from labs.access import coordinated, coordinated_comparisons
+from labs.models import Participant, Result, Submission
+from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
+from labs.review import submission_decide, submission_request_check
+from labs.selectors import current_submissions
+from labs.services import participant_add, participant_set_reference
+from proficiency import protocols, services
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
+from proficiency.selectors import POINT_ORDER
 from proficiency.services import (
     comparison_allowed_transitions,
     comparison_apply_template,
@@ -45,26 +50,9 @@ from proficiency.services import (
 if TYPE_CHECKING:
     from django.contrib.auth.models import User
 
-    from proficiency.http import AuthenticatedHttpRequest
+    from common.http import AuthenticatedHttpRequest
 
 St = Submission.Status
-
-# --- who may see what ---------------------------------------------------------------------
-
-
-def coordinated_comparisons(user: User) -> QuerySet[Comparison]:
-    """Comparisons the user coordinates; a superuser coordinates them all."""
-    if user.is_superuser:
-        return Comparison.objects.all()
-    return Comparison.objects.filter(coordinators=user)
-
-
-def coordinated(request: AuthenticatedHttpRequest, code: str) -> Comparison:
-    """The comparison ``code`` if the user coordinates it; 404 otherwise (no existence leak)."""
-    comparison = coordinated_comparisons(request.user).filter(code=code).first()
-    if comparison is None:
-        raise Http404(f"No comparison {code!r} that you coordinate.")
-    return comparison
 
 
 def _may_create(user: User) -> bool:
@@ -173,8 +161,6 @@ def comparison_status(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
 @require_http_methods(["GET", "POST"])
 def report_notes(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     """Comments, conclusions and the authoriser printed in the reports."""
-    from analysis.reports.services import report_notes_update
-
     comparison = coordinated(request, code)
     initial = {
         "comments": comparison.report_comments,
@@ -305,8 +291,6 @@ REVIEW_PER_PAGE = 50
 @login_required
 @require_GET
 def review(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
-    from django.core.paginator import Paginator
-
     comparison = coordinated(request, code)
     participants = _latest_status(comparison.participants.select_related("laboratory"))
     page = Paginator(participants.order_by("code"), REVIEW_PER_PAGE)
@@ -335,9 +319,6 @@ def _others(comparison: Comparison, participant: Participant) -> dict[int, list[
     for point_id, lab, value, big_u in rows:
         by_point[point_id].append((lab, value, big_u))
     return by_point
-
-
-POINT_ORDER = [f"measurement_point__{f}" for f in cast(list[str], MeasurementPoint._meta.ordering)]
 
 
 def _review_rows(submission: Submission) -> list[dict]:
@@ -417,10 +398,6 @@ RAW_PER_PAGE = 10
 @require_GET
 def raw_review(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     """Every participant's raw records (by code): reported vs recomputed, En, fs, fit."""
-    from django.core.paginator import Paginator
-
-    from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
-
     comparison = coordinated(request, code)
     page = Paginator(raw_records_of_comparison(comparison.pk), RAW_PER_PAGE).get_page(
         request.GET.get("page")

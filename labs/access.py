@@ -1,35 +1,106 @@
-"""Who is calling and what they may see: queryset scoping for the API.
+"""Who may see and change what (docs/architecture.md §2, §5): the one access module the web
+pages, the API, the raw-data pages, report downloads (analysis.access) and the coordinator
+pages ask. Plain functions and querysets.
 
 A caller is either a laboratory (through one of its API keys) or a person
 (session). Scope, per comparison:
 
 * participant: a key of a participating laboratory, or a member (staff or
   manager) of one; sees the comparison, its points and its own submissions;
+  the published results only once the comparison is published;
 * coordinator: a user in ``comparison.coordinators``, or a superuser; sees the
-  comparison and every participant's submissions, laboratories by code only.
+  comparison and every participant's submissions, laboratories by code only;
+* lab manager: a member with the manager role; manages the laboratory's API keys.
 
-Anything outside the caller's scope is :class:`~proficiency.errors.NotVisible`
-(404, never 403), so another laboratory's objects cannot even be confirmed to
-exist. 403 is kept for a visible comparison on which the caller lacks the role
-(a coordinator who is not a participant trying to submit).
+Anything outside the caller's scope is :class:`~common.errors.NotVisible` in the API
+(404, never 403) and ``Http404`` on a page, so another laboratory's objects cannot even
+be confirmed to exist. 403 is kept for a visible comparison on which the caller lacks the
+role (a coordinator who is not a participant trying to submit).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import cast
+from typing import TYPE_CHECKING, cast
 
-from django.contrib.auth.models import User
-from django.db.models import Count, QuerySet
+from django.contrib.auth.models import AnonymousUser, User
+from django.db.models import Count, Q, QuerySet
+from django.http import Http404, HttpRequest
 from rest_framework.exceptions import PermissionDenied
 from rest_framework.request import Request
 
+from common.errors import NotVisible, StateConflict, ValidationFailed
 from labs.api.authentication import LabKeyPrincipal
-from labs.models import Laboratory, Participant, Result, Submission
+from labs.models import Laboratory, Membership, Participant, Result, Submission
 from labs.selectors import lab_comparisons, participant_for_lab, participant_for_user
-from proficiency.errors import NotVisible, ValidationFailed
-from proficiency.models import Comparison, MeasurementPoint
-from proficiency.selectors import comparisons_visible_to
+from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
+
+if TYPE_CHECKING:
+    from common.http import AuthenticatedHttpRequest
+
+# --- people and comparisons ---------------------------------------------------------------
+
+
+def comparisons_visible_to(user: User | AnonymousUser) -> QuerySet[Comparison]:
+    """Comparisons a user may see: superusers all; coordinators theirs; lab members
+    those their laboratory takes part in. Anonymous users see none."""
+    if not user.is_authenticated:
+        return Comparison.objects.none()
+    if user.is_superuser:
+        return Comparison.objects.all()
+    return Comparison.objects.filter(
+        Q(coordinators=user) | Q(participants__laboratory__members__user=user)
+    ).distinct()
+
+
+def coordinated_comparisons(user: User) -> QuerySet[Comparison]:
+    """Comparisons the user coordinates; a superuser coordinates them all."""
+    if user.is_superuser:
+        return Comparison.objects.all()
+    return Comparison.objects.filter(coordinators=user)
+
+
+def coordinated(request: AuthenticatedHttpRequest, code: str) -> Comparison:
+    """The comparison ``code`` if the user coordinates it; 404 otherwise (no existence leak)."""
+    comparison = coordinated_comparisons(request.user).filter(code=code).first()
+    if comparison is None:
+        raise Http404(f"No comparison {code!r} that you coordinate.")
+    return comparison
+
+
+def participant_page(request: HttpRequest, code: str) -> Participant:
+    """The user's participation in comparison ``code`` (a page); 404 otherwise."""
+    try:
+        return participant_for_user(code=code, user=request.user)
+    except NotVisible as exc:
+        raise Http404(exc.message) from None
+
+
+def published_participation(request: HttpRequest, code: str) -> Participant:
+    """The user's participation in ``code`` once its results are published (a page); 404
+    before, as for a comparison the user does not take part in."""
+    participant = participant_page(request, code)
+    if participant.comparison.status != ComparisonStatus.PUBLISHED:
+        raise Http404(f"The results of {code} are not published yet.")
+    return participant
+
+
+def managed_labs(user: User | AnonymousUser) -> QuerySet[Laboratory]:
+    """The laboratories whose API keys the user manages (manager role); none when signed out."""
+    if not user.is_authenticated:
+        return Laboratory.objects.none()
+    return Laboratory.objects.filter(members__user=user, members__role=Membership.Role.MANAGER)
+
+
+def managed_lab(request: HttpRequest, lab_pk: int) -> Laboratory:
+    """A laboratory the user manages; 404 for staff and outsiders (not visible to them)."""
+    lab = managed_labs(request.user).filter(pk=lab_pk).first()
+    if lab is None:
+        raise Http404("No laboratory whose API keys you manage.")
+    return lab
+
+
+# --- API callers ---------------------------------------------------------------------------
 
 
 @dataclass(frozen=True)
@@ -88,6 +159,18 @@ def require_participant(access: ComparisonAccess) -> Participant:
             "you coordinate it but your account belongs to no participating laboratory."
         )
     return access.participant
+
+
+def require_coordinator(access: ComparisonAccess) -> None:
+    if not access.is_coordinator:
+        raise PermissionDenied(f"Only a coordinator of {access.comparison.code} can do this.")
+
+
+def published_or_coordinator(access: ComparisonAccess) -> None:
+    if access.is_coordinator:
+        return
+    if access.comparison.status != ComparisonStatus.PUBLISHED:
+        raise StateConflict(f"The results of {access.comparison.code} are not published yet.")
 
 
 def measurement_points(comparison: Comparison) -> QuerySet[MeasurementPoint]:

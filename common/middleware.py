@@ -6,7 +6,7 @@ Django 5.2 has no built-in CSP; the policy is one string from settings
 The size limit answers 413 from the declared ``Content-Length`` alone, so an
 oversized body is never read, spooled to disk or parsed (OWASP ASVS V12.1.1).
 Control characters are refused where they enter (:class:`ControlCharacterMiddleware`,
-``proficiency.parsers``): PostgreSQL cannot store NUL in text, and no field of the service
+``common.parsers``): PostgreSQL cannot store NUL in text, and no field of the service
 needs the other C0 characters except tab and line breaks.
 """
 
@@ -19,9 +19,10 @@ from typing import Any
 from django.conf import settings
 from django.core.exceptions import BadRequest
 from django.http import Http404, HttpRequest, HttpResponse, JsonResponse, QueryDict
+from django.views.defaults import bad_request as django_bad_request
 
-from labs.importers.values import human_size
-from proficiency.errors import ValidationFailed
+from common.errors import ValidationFailed
+from common.sizes import human_size
 
 #: Room for the multipart envelope (boundaries, headers, the other form fields).
 MULTIPART_SLACK_BYTES = 64 * 1024
@@ -165,7 +166,7 @@ class ControlCharacterMiddleware:
       C0 character other than tab, LF and CR -> 400 naming the parameter;
     * ``multipart/form-data``: its text fields are checked when the view parses the body
       (not here: views first install their upload size limits);
-    * JSON bodies: ``proficiency.parsers`` (the API's parsers) name the key path.
+    * JSON bodies: ``common.parsers`` (the API's parsers) name the key path.
 
     After :class:`RequestSizeLimitMiddleware`, so that an oversized body is never read.
     """
@@ -235,7 +236,6 @@ def bad_request(request: HttpRequest, exception: Exception) -> HttpResponse:
     request Django's."""
     if isinstance(exception, ControlCharacters):
         return control_response(request, exception)
-    from django.views.defaults import bad_request as django_bad_request
 
     return django_bad_request(request, exception)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 
+from celery import current_app
 from django.conf import settings
 from django.db import connection
 from django.http import HttpRequest, JsonResponse
@@ -29,11 +30,9 @@ def check_database() -> None:
 
 def check_broker() -> None:
     """Open (and close) one connection to ``CELERY_BROKER_URL``, without retries."""
-    from proficiency.celery import app
-
     timeout = float(getattr(settings, "HEALTHZ_TIMEOUT", 2.0))
     url = settings.CELERY_BROKER_URL
-    with app.connection_for_write(url, connect_timeout=timeout) as conn:
+    with current_app.connection_for_write(url, connect_timeout=timeout) as conn:
         conn.ensure_connection(max_retries=1, interval_start=0, interval_step=0, timeout=timeout)
         # Redis connects lazily: a channel runs a real command against the broker.
         conn.default_channel  # noqa: B018

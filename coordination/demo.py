@@ -25,7 +25,9 @@ from django.contrib.auth import get_user_model
 from django.contrib.auth.models import Group, Permission
 from django.db import transaction
 
+from analysis.core.signals import synthetic
 from labs.models import Laboratory, Membership, Participant, Result, Submission
+from labs.raw_services import Upload, raw_record_upload
 from labs.services import participant_add
 from proficiency.models import (
     AssignedValueMethod,
@@ -302,9 +304,6 @@ def _raw_records(participant: Participant) -> None:
     """A synthetic linear (int16 + sidecar) and curvilinear (int16 + encoder CSV) record
     behind MEMS 1, X, 10 Hz, whose truth is the reported value × ``RAW_BIAS``; recomputed
     by the Celery task after the loader's transaction commits."""
-    from analysis.core.signals import synthetic
-    from labs.raw_services import Upload, raw_record_upload
-
     if participant.raw_records.exists():
         return
     submission = participant.submissions.get(version=1)

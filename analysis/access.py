@@ -1,4 +1,5 @@
-"""Who may see which report (read side, shared by the API and the web page).
+"""Report visibility (docs/architecture.md §2, §5), the analysis part of the access rules (the
+rest is labs.access): who may list and download which report.
 
 Coordinators: every report of their comparison, preliminary ones included.
 Participants: once the comparison is published, the final versions of the summary and of
@@ -11,8 +12,8 @@ from __future__ import annotations
 from django.db.models import Q, QuerySet
 
 from analysis.models import Report
-from labs.api.permissions import Caller, ComparisonAccess, comparison_access
-from proficiency.errors import NotVisible
+from common.errors import NotVisible
+from labs.access import Caller, ComparisonAccess, comparison_access
 from proficiency.models import ComparisonStatus
 
 

@@ -2,7 +2,7 @@
 
 from django.core.management.base import BaseCommand
 
-from proficiency.demo import load_demo
+from coordination.demo import load_demo
 
 
 class Command(BaseCommand):

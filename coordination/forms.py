@@ -7,6 +7,7 @@ from typing import Any, cast
 
 from django import forms
 
+from common.forms import BootstrapMixin
 from labs.models import Laboratory
 from proficiency import protocols
 from proficiency.models import (
@@ -18,25 +19,6 @@ from proficiency.models import (
     Direction,
     MeasurementPoint,
 )
-
-
-class BootstrapMixin:
-    """Bootstrap 5 classes on every widget (no crispy-forms needed for these small forms)."""
-
-    fields: dict[str, forms.Field]  # the form's, this mixin comes first in its bases
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        for field in self.fields.values():
-            widget = field.widget
-            if isinstance(widget, forms.CheckboxInput | forms.CheckboxSelectMultiple):
-                css = "form-check-input"
-            elif isinstance(widget, forms.Select | forms.SelectMultiple):
-                css = "form-select"
-            else:
-                css = "form-control"
-            widget.attrs.setdefault("class", css)
-
 
 TEMPLATE_CHOICES = [("", "From scratch (add devices and points yourself)")] + [
     (key, t.title) for key, t in protocols.TEMPLATES.items()

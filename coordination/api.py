@@ -1,63 +1,32 @@
-"""Coordinator setup API: create a comparison, add devices, generate the point grid, invite
-laboratories (docs/interfaces.md §3, extended). Thin views over ``proficiency.services`` and
+"""Coordinator setup API: add devices, generate the point grid, invite laboratories
+(docs/interfaces.md §3, extended; creating a comparison is ``POST /api/v1/comparisons/``,
+labs.api.views.ComparisonList). Thin views over ``proficiency.services`` and
 ``labs.services``; the same rules as the coordinator pages."""
 
 from __future__ import annotations
 
-from typing import Any, cast
+from typing import Any
 
-from django.contrib.auth.models import User
 from django.db import transaction
 from django.urls import path
 from drf_spectacular.utils import extend_schema
 from rest_framework import serializers, status
-from rest_framework.exceptions import PermissionDenied
 from rest_framework.request import Request
 from rest_framework.response import Response
 
-from analysis.api.views import require_coordinator
+from common.api import valid_data
+from common.errors import ValidationFailed
+from labs.access import require_coordinator
 from labs.api.views import ApiView
 from labs.models import Laboratory
 from labs.services import participant_add
 from proficiency import protocols
-from proficiency.errors import ValidationFailed
-from proficiency.models import Comparison, Device
-from proficiency.serializers import POSITIVE, NewComparisonSerializer
+from proficiency.models import Device
+from proficiency.serializers import POSITIVE
 from proficiency.services import (
     comparison_apply_template,
-    comparison_create,
     measurement_points_generate,
 )
-
-
-def _problems(field: str, problems: Any) -> list[dict[str, Any]]:
-    """One error per field; a list field's errors come by index (``axes[2]``)."""
-    if isinstance(problems, dict):
-        return [e for i, p in problems.items() for e in _problems(f"{field}[{i}]", p)]
-    return [{"row": None, "field": field, "message": str(problems[0])}]
-
-
-def _valid(serializer: serializers.Serializer) -> dict[str, Any]:
-    if not serializer.is_valid():
-        raise ValidationFailed(
-            "The request does not fit; see errors.",
-            errors=[e for f, p in serializer.errors.items() for e in _problems(f, p)],
-        )
-    return dict(serializer.validated_data)
-
-
-def comparison_create_response(request: Request) -> Response:
-    """POST /api/v1/comparisons/: create a draft comparison; the caller coordinates it."""
-    user = request.user
-    if not getattr(user, "has_perm", None) or not user.has_perm("proficiency.add_comparison"):
-        raise PermissionDenied("Only coordinators may create comparisons.")
-    data = _valid(NewComparisonSerializer(data=request.data))
-    template = data.pop("template", "") or None
-    # has_perm passed: a person (keys have no permissions)
-    created = comparison_create(
-        comparison=Comparison(**data), template_key=template, user=cast(User, user)
-    )
-    return Response(NewComparisonSerializer(created).data, status=status.HTTP_201_CREATED)
 
 
 class DeviceInSerializer(serializers.ModelSerializer):
@@ -76,7 +45,7 @@ class DeviceAdd(ApiView):
     def post(self, request: Request, code: str) -> Response:
         access = self.access(code)
         require_coordinator(access)
-        data = _valid(DeviceInSerializer(data=request.data))
+        data = valid_data(DeviceInSerializer(data=request.data))
         if access.comparison.devices.filter(name=data["name"]).exists():
             raise ValidationFailed(f"{code} already has a device named {data['name']!r}.")
         device = Device.objects.create(comparison=access.comparison, **data)
@@ -99,7 +68,7 @@ class PointsGenerate(ApiView):
     def post(self, request: Request, code: str) -> Response:
         access = self.access(code)
         require_coordinator(access)
-        data = _valid(GridSerializer(data=request.data))
+        data = valid_data(GridSerializer(data=request.data))
         c = access.comparison
         devices = list(c.devices.filter(name__in=data["devices"]) if "devices" in data
                        else c.devices.all())  # fmt: skip
@@ -131,7 +100,7 @@ class Invite(ApiView):
     def post(self, request: Request, code: str) -> Response:
         access = self.access(code)
         require_coordinator(access)
-        wanted = _valid(InviteSerializer(data=request.data))["laboratories"]
+        wanted = valid_data(InviteSerializer(data=request.data))["laboratories"]
         # ids are plain ASCII digits that fit a bigint ("¹".isdigit() is True in Python)
         ids = [int(w) for w in wanted if w.isascii() and w.isdigit() and len(w) <= 18]
         labs = {str(lab.pk): lab for lab in Laboratory.objects.filter(pk__in=ids)} | {

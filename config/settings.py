@@ -36,8 +36,8 @@ CSRF_TRUSTED_ORIGINS = env.list("CSRF_TRUSTED_ORIGINS", default=[])
 # would count a key's requests separately, allowing several times the rate limit.
 CACHES = {"default": env.cache_url("CACHE_URL", default="locmemcache://")}
 if CACHES["default"]["BACKEND"] == "django.core.cache.backends.redis.RedisCache":
-    # the same backend, reusing its redis.Redis client (proficiency/cache.py)
-    CACHES["default"]["BACKEND"] = "proficiency.cache.RedisCache"
+    # the same backend, reusing its redis.Redis client (common/cache.py)
+    CACHES["default"]["BACKEND"] = "common.cache.RedisCache"
 
 # E-mail (publication notices, password resets): printed on the console unless EMAIL_URL
 # names a server, e.g. smtp+tls://user:password@mail.example.org:587, so the quick start
@@ -57,8 +57,8 @@ if not DEBUG and _EMAIL["EMAIL_BACKEND"] not in (
 DEFAULT_FROM_EMAIL = env.str("DEFAULT_FROM_EMAIL", default="proficiency-testing@localhost")
 
 INSTALLED_APPS = [
-    # the admin, for superusers only (proficiency/admin_site.py)
-    "proficiency.admin_site.SuperuserAdminConfig",
+    # the admin, for superusers only (common/admin_site.py)
+    "common.admin_site.SuperuserAdminConfig",
     "django.contrib.auth",
     "django.contrib.contenttypes",
     "django.contrib.sessions",
@@ -76,13 +76,14 @@ INSTALLED_APPS = [
     "proficiency",
     "labs",
     "analysis",
+    "coordination",
 ]
 
 MIDDLEWARE = [
     "django.middleware.security.SecurityMiddleware",
-    "proficiency.middleware.ContentSecurityPolicyMiddleware",
-    "proficiency.middleware.RequestSizeLimitMiddleware",
-    "proficiency.middleware.ControlCharacterMiddleware",
+    "common.middleware.ContentSecurityPolicyMiddleware",
+    "common.middleware.RequestSizeLimitMiddleware",
+    "common.middleware.ControlCharacterMiddleware",
     "whitenoise.middleware.WhiteNoiseMiddleware",
     "django.contrib.sessions.middleware.SessionMiddleware",
     "django.middleware.common.CommonMiddleware",
@@ -103,7 +104,7 @@ AUTHENTICATION_BACKENDS = [
     "django.contrib.auth.backends.ModelBackend",
 ]
 
-ROOT_URLCONF = "proficiency.urls"
+ROOT_URLCONF = "config.urls"
 
 TEMPLATES = [
     {
@@ -120,7 +121,7 @@ TEMPLATES = [
     },
 ]
 
-WSGI_APPLICATION = "proficiency.wsgi.application"
+WSGI_APPLICATION = "config.wsgi.application"
 
 # Embedded default: SQLite beside manage.py. DATABASE_URL=postgres://... for PostgreSQL
 # (psycopg 3).
@@ -198,7 +199,8 @@ _VISIBILITY = max(3600, CELERY_TASK_TIME_LIMIT) + 300
 CELERY_BROKER_TRANSPORT_OPTIONS = {
     "visibility_timeout": env.int("CELERY_VISIBILITY_TIMEOUT", default=_VISIBILITY)
 }
-# Celery beat (exactly one per installation): daily housekeeping (proficiency.tasks).
+# Celery beat (exactly one per installation): daily housekeeping (labs.tasks, under its old
+# name proficiency.tasks.housekeeping).
 CELERY_BEAT_SCHEDULE = {
     "housekeeping": {
         "task": "proficiency.tasks.housekeeping",
@@ -211,10 +213,10 @@ CELERY_BEAT_SCHEDULE = {
 }
 
 API_BROWSABLE = env.bool("API_BROWSABLE", default=DEBUG)
-# /api/schema/ and /api/docs/: public, or for signed-in people only (proficiency.views)
+# /api/schema/ and /api/docs/: public, or for signed-in people only (common.views)
 API_DOCS_PUBLIC = env.bool("API_DOCS_PUBLIC", default=DEBUG)
 REST_FRAMEWORK = {
-    "EXCEPTION_HANDLER": "proficiency.errors.api_exception_handler",
+    "EXCEPTION_HANDLER": "common.errors.api_exception_handler",
     "DEFAULT_AUTHENTICATION_CLASSES": [
         "rest_framework.authentication.SessionAuthentication",
     ],
@@ -225,12 +227,12 @@ REST_FRAMEWORK = {
     + (["rest_framework.renderers.BrowsableAPIRenderer"] if API_BROWSABLE else []),
     # DRF's parsers, refusing control characters with a 400 naming the field
     "DEFAULT_PARSER_CLASSES": [
-        "proficiency.parsers.JSONParser",
-        "proficiency.parsers.FormParser",
-        "proficiency.parsers.MultiPartParser",
+        "common.parsers.JSONParser",
+        "common.parsers.FormParser",
+        "common.parsers.MultiPartParser",
     ],
-    "DEFAULT_FILTER_BACKENDS": ["proficiency.filters.FilterBackend"],  # django-filter's
-    "DEFAULT_PAGINATION_CLASS": "proficiency.pagination.PageNumberPagination",  # DRF's
+    "DEFAULT_FILTER_BACKENDS": ["common.filters.FilterBackend"],  # django-filter's
+    "DEFAULT_PAGINATION_CLASS": "common.pagination.PageNumberPagination",  # DRF's
     "PAGE_SIZE": 100,
     "DEFAULT_THROTTLE_RATES": {
         "api_key": env.str("THROTTLE_API_KEY", default="600/min"),
@@ -253,7 +255,7 @@ SPECTACULAR_SETTINGS = {
     "COMPONENT_SPLIT_REQUEST": True,
     "POSTPROCESSING_HOOKS": [
         "drf_spectacular.hooks.postprocess_schema_enums",
-        "proficiency.schema.error_responses",
+        "common.schema.error_responses",
     ],
 }
 
@@ -288,7 +290,7 @@ X_FRAME_OPTIONS = "DENY"
 SESSION_COOKIE_HTTPONLY = True
 SESSION_COOKIE_SAMESITE = "Lax"
 CSRF_COOKIE_SAMESITE = "Lax"
-# Only the site's own files (proficiency.middleware). Inline SVG charts (matplotlib) need
+# Only the site's own files (common.middleware). Inline SVG charts (matplotlib) need
 # style attributes and one fixed <style> block (its hash); no inline or foreign script runs.
 # Bootstrap draws form controls with data: SVG images.
 _MATPLOTLIB_SVG_STYLE = (
@@ -325,8 +327,8 @@ AXES_LOCKOUT_PARAMETERS = [["username", "ip_address"]]
 AXES_RESET_ON_SUCCESS = True
 AXES_HTTP_RESPONSE_CODE = 429
 AXES_LOCKOUT_TEMPLATE = "registration/locked_out.html"
-AXES_CLIENT_IP_CALLABLE = "proficiency.middleware.client_ip"
-# Password reset (proficiency.accounts): at most PASSWORD_RESET_LIMIT reset e-mails per
+AXES_CLIENT_IP_CALLABLE = "common.middleware.client_ip"
+# Password reset (common.accounts): at most PASSWORD_RESET_LIMIT reset e-mails per
 # client address and per e-mail address in PASSWORD_RESET_WINDOW; then 429.
 PASSWORD_RESET_LIMIT = env.int("PASSWORD_RESET_LIMIT", default=5)
 PASSWORD_RESET_WINDOW = timedelta(minutes=env.int("PASSWORD_RESET_WINDOW_MINUTES", default=60))
@@ -337,14 +339,14 @@ HEALTHZ_TIMEOUT = env.float("HEALTHZ_TIMEOUT", default=2.0)
 # Sign-in records (django-axes AccessLog) kept this long, then removed by housekeeping.
 LOGIN_LOG_RETENTION_DAYS = env.int("LOGIN_LOG_RETENTION_DAYS", default=365)
 
-# Structured logs: JSON lines in production (proficiency.logs), plain text while developing.
+# Structured logs: JSON lines in production (common.logs), plain text while developing.
 LOG_FORMAT = env.str("LOG_FORMAT", default="plain" if DEBUG else "json")
 LOGGING = {
     "version": 1,
     "disable_existing_loggers": False,
     "formatters": {
         "plain": {"format": "%(asctime)s %(levelname)s %(name)s %(message)s"},
-        "json": {"()": "proficiency.logs.JsonFormatter"},
+        "json": {"()": "common.logs.JsonFormatter"},
     },
     "handlers": {"console": {"class": "logging.StreamHandler", "formatter": LOG_FORMAT}},
     "root": {"handlers": ["console"], "level": env.str("LOG_LEVEL", default="INFO")},

@@ -1,3 +1,5 @@
+"""The OpenAPI schema and documentation pages' guard (``API_DOCS_PUBLIC``)."""
+
 from collections.abc import Callable
 from functools import wraps
 from typing import Any
@@ -5,18 +7,6 @@ from typing import Any
 from django.conf import settings
 from django.contrib.auth.views import redirect_to_login
 from django.http import HttpRequest, HttpResponse, JsonResponse
-from django.shortcuts import render
-
-from proficiency.selectors import comparisons_visible_to
-
-
-def home(request: HttpRequest) -> HttpResponse:
-    comparisons = comparisons_visible_to(request.user).order_by("code")
-    return render(
-        request,
-        "home.html",
-        {"comparisons": comparisons, "provider": settings.PT_PROVIDER_NAME},
-    )
 
 
 def api_docs_guard(view: Callable[..., HttpResponse]) -> Callable[..., HttpResponse]:

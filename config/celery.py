@@ -9,7 +9,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from celery import Celery
 
-os.environ.setdefault("DJANGO_SETTINGS_MODULE", "proficiency.settings")
+os.environ.setdefault("DJANGO_SETTINGS_MODULE", "config.settings")
 
 app = Celery("proficiency")
 app.config_from_object("django.conf:settings", namespace="CELERY")

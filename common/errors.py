@@ -73,7 +73,7 @@ def api_exception_handler(exc: Exception, context: dict[str, Any]) -> Response |
     """DRF exception handler: ApplicationError -> JSON with detail and errors; a lost
     database connection (also one raised by psycopg directly, as COPY does) -> 503; else
     DRF's."""
-    # imported here: rest_framework.views loads the parsers (proficiency.parsers), which
+    # imported here: rest_framework.views loads the parsers (common.parsers), which
     # use this module's errors
     from rest_framework.views import exception_handler
 

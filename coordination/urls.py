@@ -4,7 +4,7 @@ under ``/results/`` (both in the ``coordinator`` namespace; analysis pages from
 
 from django.urls import include, path
 
-from proficiency import coordinator_views as views
+from coordination import views
 
 app_name = "coordinator"
 

@@ -12,7 +12,7 @@ from typing import Any
 
 from rest_framework import parsers
 
-from proficiency.middleware import ControlCharacters, check_query_dict, control_message
+from common.middleware import ControlCharacters, check_query_dict, control_message
 
 
 def json_errors(data: Any, path: str = "") -> Iterator[dict[str, Any]]:

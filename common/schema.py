@@ -1,6 +1,6 @@
 """OpenAPI schema post-processing (drf-spectacular hook).
 
-Every ``/api/v1/`` view answers errors through :func:`proficiency.errors.api_exception_handler`
+Every ``/api/v1/`` view answers errors through :func:`common.errors.api_exception_handler`
 with the same ``Error`` body (docs/interfaces.md §3), but most views only declare their success
 response. This hook documents the error statuses any of them can return, so that the
 schema matches what clients receive (checked by ``tests/security/test_schema_fuzz.py``).

@@ -3,7 +3,7 @@
 Django's ``PasswordResetView`` sends a reset e-mail to whatever address is typed in, as
 often as asked: a mail bomb for that address, and free guesses of which addresses have an
 account. Here every reset that would send an e-mail counts once for the client address
-(``proficiency.middleware.client_ip``, the same as the sign-in lockout's) and once for the
+(``common.middleware.client_ip``, the same as the sign-in lockout's) and once for the
 e-mail address typed in, in the shared cache; past ``PASSWORD_RESET_LIMIT`` for either
 within ``PASSWORD_RESET_WINDOW`` the page answers 429 and sends nothing.
 """
@@ -19,7 +19,7 @@ from django.core.cache import cache
 from django.http import HttpResponse
 from django.shortcuts import render
 
-from proficiency.middleware import client_ip
+from common.middleware import client_ip
 
 
 def _count(key: str, window: int) -> int:

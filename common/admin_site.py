@@ -25,7 +25,7 @@ class SuperuserAdminConfig(AdminConfig):
     """Replaces ``django.contrib.admin`` in INSTALLED_APPS (Django's documented way to
     change the default admin site)."""
 
-    default_site = "proficiency.admin_site.SuperuserAdminSite"
+    default_site = "common.admin_site.SuperuserAdminSite"
 
 
 class RecordedByServicesAdmin(admin.ModelAdmin):
