@@ -77,7 +77,7 @@ def tree_copy(tmp_path: Path) -> Path:
 def test_import_contracts_hold():
     done = lint_imports(ROOT)
     assert done.returncode == 0, done.stdout + done.stderr
-    assert "5 kept, 0 broken" in done.stdout
+    assert "6 kept, 0 broken" in done.stdout
 
 
 @pytest.mark.parametrize(
@@ -94,12 +94,20 @@ def test_import_contracts_hold():
         ("analysis/core/_probe.py", "from analysis import models\n", "pure-core"),
         ("labs/importers/_probe.py", "import labs.models\n", "pure-importers"),
         ("labs/importers/_probe.py", "from analysis.core import robust\n", "pure-independent"),
+        # appended to a service or selector: an edge imported from below
+        ("labs/services.py", "\nimport labs.views\n", "services-below-edges"),
+        (
+            "analysis/selectors.py",
+            "\ndef f():\n    from analysis import forms\n",
+            "services-below-edges",
+        ),
     ],
 )
 def test_import_contracts_fail_on_a_planted_import(tmp_path, probe, source, contract):
     copy = tree_copy(tmp_path)
     assert lint_imports(copy, contract).returncode == 0  # kept before the probe
-    (copy / probe).write_text(source)
+    target = copy / probe
+    target.write_text((target.read_text() if target.exists() else "") + source)
     done = lint_imports(copy, contract)
     assert done.returncode == 1, done.stdout + done.stderr
     assert "0 kept, 1 broken" in done.stdout
