@@ -79,8 +79,9 @@ from analysis.pipeline import (
 )
 from analysis.selectors import LoadedRound, load_round, point_result_counts, point_spec
 from analysis.tasks import analysis_chunk_task, analysis_finish_task, analysis_run_task
+from common import jobs
 from common.errors import ApplicationError, StateConflict, ValidationFailed
-from common.jobs import heartbeat, stale_before
+from common.jobs import heartbeat
 from labs.models import Result
 from labs.selectors import current_submissions
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint, SigmaPtMode
@@ -151,25 +152,14 @@ def _parameters(c: Comparison) -> dict[str, Any]:
     }
 
 
-def _silent(since: str | None = None) -> Q:
-    """Rows whose last heartbeat (or, before the first, the time field ``since``) is stale."""
-    stale = stale_before()
-    silent = Q(heartbeat_at__lt=stale)
-    return silent | Q(heartbeat_at__isnull=True, **{f"{since}__lt": stale}) if since else silent
-
-
 def _claim(run_id: int, delivery: str = "") -> bool:
     """pending → running; or take over a running run whose heartbeat is stale, or that
     this very task (``delivery``: its Celery id, redelivered after its worker was lost)
     had claimed.  Taking over keeps the run's plan: only its lost work is redone."""
-    now = timezone.now()
-    mine = {"heartbeat_at": now, "claimed_by": delivery}
-    fresh = {"status": R.RUNNING, "started_at": now, "progress": 1, "error": "",
+    fresh = {"status": R.RUNNING, "started_at": timezone.now(), "progress": 1, "error": "",
              "chunks_total": 0, "chunks_done": 0}  # fmt: skip
-    if AnalysisRun.objects.filter(pk=run_id, status=R.PENDING).update(**fresh, **mine):
-        return True
-    takeover = _silent("started_at") | (Q(claimed_by=delivery) if delivery else Q(pk__in=[]))
-    return bool(AnalysisRun.objects.filter(takeover, pk=run_id, status=R.RUNNING).update(**mine))
+    rows = AnalysisRun.objects.filter(pk=run_id)
+    return jobs.claim(rows, delivery=delivery, fresh=fresh, takeover={})
 
 
 def _stage(run_id: int, stage: str, progress: int | None = None) -> None:
@@ -186,23 +176,13 @@ def _table(model: Any) -> str:
 def _beat_run(run_id: int) -> None:
     """The run's heartbeat; skipped while the run row is locked (a chunk counting itself,
     a failure or cancellation in progress): never waits."""
-    with connection.cursor() as cur:
-        cur.execute(
-            f"UPDATE {_table(AnalysisRun)} SET heartbeat_at = %s WHERE id = (SELECT id FROM "
-            f"{_table(AnalysisRun)} WHERE id = %s AND status = %s FOR NO KEY UPDATE SKIP LOCKED)",
-            [timezone.now(), run_id, R.RUNNING],
-        )
+    jobs.beat(AnalysisRun, run_id, status=R.RUNNING)
 
 
 def _beat_chunk(run_id: int, chunk_id: int, token: str) -> None:
     """The chunk's heartbeat while its claim is ``token``, and the run's.  Skipped while
     the chunk row is locked, i.e. while its outputs are being stored."""
-    with connection.cursor() as cur:
-        cur.execute(
-            f"UPDATE {_table(AnalysisChunk)} SET heartbeat_at = %s WHERE id = (SELECT id FROM "
-            f"{_table(AnalysisChunk)} WHERE id = %s AND token = %s FOR UPDATE SKIP LOCKED)",
-            [timezone.now(), chunk_id, token],
-        )
+    jobs.beat(AnalysisChunk, chunk_id, lock="UPDATE", token=token)
     _beat_run(run_id)
 
 
@@ -331,7 +311,7 @@ def _claim_chunk(chunk_id: int, delivery: str) -> str | None:
     """Claim a chunk that is not done: unclaimed, or its claim's heartbeat is stale, or
     the claim was this very task's (a redelivery).  The new claim's token, or None."""
     token = secrets.token_hex(16)
-    takeover = Q(token="") | _silent() | (Q(claimed_by=delivery) if delivery else Q(pk__in=[]))
+    takeover = Q(token="") | jobs.silent() | jobs.redelivered(delivery)
     claimed = AnalysisChunk.objects.filter(takeover, pk=chunk_id, done=False).update(
         token=token, claimed_by=delivery, heartbeat_at=timezone.now(),
         attempts=F("attempts") + 1,
@@ -590,7 +570,7 @@ def analysis_sweep() -> dict[str, int]:
         lost = list(
             AnalysisChunk.objects.select_for_update(skip_locked=True, of=("self",))
             .order_by()
-            .filter(_silent(), run__status=R.RUNNING, done=False)
+            .filter(jobs.silent(), run__status=R.RUNNING, done=False)
             .exclude(token="")
             .values_list("pk", "run_id", "index")
         )
@@ -601,7 +581,7 @@ def analysis_sweep() -> dict[str, int]:
     for _, run_id, index in lost:
         log.warning("analysis run %s: chunk %s lost with its worker, queued again", run_id, index)
         sent["chunks"] += _enqueue(analysis_chunk_task, run_id, index)
-    for run in AnalysisRun.objects.filter(_silent("created_at"), status__in=ACTIVE):
+    for run in AnalysisRun.objects.filter(jobs.silent("created_at"), status__in=ACTIVE):
         log.warning("analysis run %s silent since %s: its work is queued again", run.pk,
                     run.heartbeat_at or run.created_at)  # fmt: skip
         if run.status == R.PENDING or run.chunks_total == 0:
@@ -610,7 +590,7 @@ def analysis_sweep() -> dict[str, int]:
                 sent["runs"] += _send(analysis_run_task, run.pk, task_id=task_id)
             continue
         unsent = AnalysisChunk.objects.filter(
-            _silent() | Q(heartbeat_at__isnull=True), run=run, done=False, token=""
+            jobs.silent() | Q(heartbeat_at__isnull=True), run=run, done=False, token=""
         )
         for pk, index, beat in unsent.values_list("pk", "index", "heartbeat_at"):
             if AnalysisChunk.objects.filter(pk=pk, token="", heartbeat_at=beat).update(
@@ -624,20 +604,12 @@ def analysis_sweep() -> dict[str, int]:
 
 def _lease(run: AnalysisRun, **fields: Any) -> bool:
     """Move a silent run's heartbeat to now, unless another sweep or a task did."""
-    return bool(
-        AnalysisRun.objects.filter(
-            pk=run.pk, status=run.status, heartbeat_at=run.heartbeat_at
-        ).update(heartbeat_at=timezone.now(), **fields)
-    )
+    return jobs.lease(AnalysisRun.objects.all(), pk=run.pk, status=run.status,
+                      heartbeat_at=run.heartbeat_at, **fields)  # fmt: skip
 
 
 def _send(task: Any, run_id: int, *, task_id: str) -> bool:
-    try:
-        task.apply_async((run_id,), task_id=task_id)
-    except (OperationalError, OSError) as exc:
-        log.error("analysis run %s not queued again, broker unreachable: %s", run_id, exc)
-        return False
-    return True
+    return jobs.send(task, (run_id,), task_id=task_id, what=f"analysis run {run_id}")
 
 
 # --- computing a chunk ---------------------------------------------------------------------

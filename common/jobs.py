@@ -32,10 +32,13 @@ import os
 import threading
 import time
 from collections.abc import Callable, Iterator
+from typing import Any
 
 from django.conf import settings
 from django.db import connection, connections
+from django.db.models import Model, Q, QuerySet
 from django.utils import timezone
+from kombu.exceptions import OperationalError
 
 log = logging.getLogger(__name__)
 
@@ -81,3 +84,74 @@ def heartbeat(beat: Callable[[], object], what: str = "job") -> Iterator[None]:
     finally:
         stop.set()
         thread.join(timeout=every + 30)
+
+
+# --- the claim protocol shared by every job row ---------------------------------------------
+# A job row has ``status`` (pending → running → succeeded | failed), ``heartbeat_at`` and
+# ``claimed_by`` (the Celery id of the task holding it).  Analysis runs and their chunks,
+# and raw recomputations, are claimed, kept alive and re-queued by these functions only
+# (docs/architecture.md §3, docs/lifecycles.md §3 and §5).
+
+
+def silent(since: str | None = None) -> Q:
+    """Rows whose last heartbeat (or, before the first, the time field ``since``) is stale."""
+    stale = stale_before()
+    quiet = Q(heartbeat_at__lt=stale)
+    return quiet | Q(heartbeat_at__isnull=True, **{f"{since}__lt": stale}) if since else quiet
+
+
+def redelivered(delivery: str) -> Q:
+    """Rows this very task had claimed (``delivery``, its Celery id, redelivered after its
+    worker was lost); none for a task without an id."""
+    return Q(claimed_by=delivery) if delivery else Q(pk__in=[])
+
+
+def claim(
+    rows: QuerySet[Any],
+    *,
+    delivery: str,
+    fresh: dict[str, Any],
+    takeover: dict[str, Any],
+    since: str = "started_at",
+) -> bool:
+    """pending → running with ``fresh`` (plus the heartbeat and ``claimed_by``); or take
+    over a running row that is silent or was this task's own, writing ``takeover``.  One
+    conditional UPDATE each, so two workers never hold the same row."""
+    mine = {"heartbeat_at": timezone.now(), "claimed_by": delivery}
+    if rows.filter(status="pending").update(**fresh, **mine):
+        return True
+    lost = silent(since) | redelivered(delivery)
+    return bool(rows.filter(lost, status="running").update(**takeover, **mine))
+
+
+def beat(model: type[Model], row_id: int, *, lock: str = "NO KEY UPDATE", **where: Any) -> None:
+    """The row's heartbeat while ``where`` still holds (its claim); skipped, never waited
+    for, while the row is locked (by its own task storing outputs, or a cancellation)."""
+    table = connection.ops.quote_name(model._meta.db_table)
+    conditions = "".join(f" AND {connection.ops.quote_name(k)} = %s" for k in where)
+    with connection.cursor() as cur:
+        cur.execute(
+            f"UPDATE {table} SET heartbeat_at = %s WHERE id = (SELECT id FROM {table} "
+            f"WHERE id = %s{conditions} FOR {lock} SKIP LOCKED)",
+            [timezone.now(), row_id, *where.values()],
+        )
+
+
+def lease(rows: QuerySet[Any], *, pk: int, status: str, heartbeat_at: Any, **fields: Any) -> bool:
+    """Move a silent row's heartbeat to now (and write ``fields``) unless another sweep or
+    a task did since it was read: the sweep's guard against sending a task twice."""
+    return bool(
+        rows.filter(pk=pk, status=status, heartbeat_at=heartbeat_at).update(
+            heartbeat_at=timezone.now(), **fields
+        )
+    )
+
+
+def send(task: Any, args: tuple[Any, ...], *, task_id: str | None, what: str) -> bool:
+    """Send ``task``; with the broker unreachable, log it (the next sweep tries again)."""
+    try:
+        task.apply_async(args, task_id=task_id)
+    except (OperationalError, OSError) as exc:
+        log.error("%s not queued again, broker unreachable: %s", what, exc)
+        return False
+    return True

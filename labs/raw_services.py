@@ -9,10 +9,10 @@ commit.  ``raw_recompute_execute`` claims the row with a conditional UPDATE and 
 the outputs with a second conditional UPDATE, so a task delivered twice leaves one
 result (the row is one per record: a OneToOne).
 
-The claim follows the analysis runs' protocol (``analysis.services``; one
-helper is to serve both): a running row may be taken over when its heartbeat is stale or by a
-redelivery of the task that claimed it, and ``raw_sweep`` (Celery beat) re-queues the
-rows whose worker was lost.  The claim's ``started_at`` is the token ``_finish`` checks.
+The claim is the analysis runs' protocol, by the same helpers (``common.jobs``): a
+running row may be taken over when its heartbeat is stale or by a redelivery of the task
+that claimed it, and ``raw_sweep`` (Celery beat) re-queues the rows whose worker was lost.
+The claim's ``started_at`` is the token ``_finish`` checks.
 """
 
 from __future__ import annotations
@@ -30,17 +30,16 @@ from celery import uuid
 from django.conf import settings
 from django.contrib.auth.models import User
 from django.core.files.base import ContentFile
-from django.db import IntegrityError, connection, transaction
-from django.db.models import Q
+from django.db import IntegrityError, transaction
 from django.utils import timezone
-from kombu.exceptions import OperationalError
 
 import proficiency
 from analysis.core.groups import CoreInputError
 from analysis.core.signals.records import SignalInputError
 from analysis.core.signals.sensitivity import record_sensitivity
+from common import jobs
 from common.errors import RequestTooLarge, ValidationFailed
-from common.jobs import heartbeat, stale_before
+from common.jobs import heartbeat
 from labs.importers.values import human_size
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord, Result, Submission
 from labs.raw import form_metadata, read_record, sidecar_json
@@ -267,28 +266,14 @@ def _claim(record_id: int, delivery: str = "") -> bool:
     """pending → running; or take over a running row whose heartbeat is stale, or that
     this very task (``delivery``, its Celery id, redelivered after its worker was lost)
     had claimed.  Each claim sets a new ``started_at``, the token ``_finish`` checks."""
-    now = timezone.now()
-    fresh = {"status": R.RUNNING, "started_at": now, "error": "", "heartbeat_at": now,
-             "claimed_by": delivery}  # fmt: skip
+    fresh = {"status": R.RUNNING, "started_at": timezone.now(), "error": ""}
     rows = RawRecomputation.objects.filter(record_id=record_id)
-    if rows.filter(status=R.PENDING).update(**fresh):
-        return True
-    stale = stale_before()
-    takeover = Q(heartbeat_at__lt=stale) | Q(heartbeat_at__isnull=True, started_at__lt=stale)
-    if delivery:
-        takeover |= Q(claimed_by=delivery)
-    return bool(rows.filter(takeover, status=R.RUNNING).update(**fresh))
+    return jobs.claim(rows, delivery=delivery, fresh=fresh, takeover=fresh)
 
 
 def _beat(row_id: int, started_at: Any) -> None:
     """The row's heartbeat while this claim holds it (never waits for a lock)."""
-    table = connection.ops.quote_name(RawRecomputation._meta.db_table)
-    with connection.cursor() as cur:
-        cur.execute(
-            f"UPDATE {table} SET heartbeat_at = %s WHERE id = (SELECT id FROM {table} WHERE "
-            "id = %s AND status = %s AND started_at = %s FOR NO KEY UPDATE SKIP LOCKED)",
-            [timezone.now(), row_id, R.RUNNING, started_at],
-        )
+    jobs.beat(RawRecomputation, row_id, status=R.RUNNING, started_at=started_at)
 
 
 def raw_recompute_execute(*, record_id: int, delivery: str = "") -> str:
@@ -316,25 +301,21 @@ def raw_sweep() -> int:
     ones whose message was lost, running ones whose worker was lost).  Each is decided by
     a conditional UPDATE that moves the heartbeat to now and names the task sent, which
     may then take the claim over: two sweeps at once send it once.  The number sent."""
-    stale = stale_before()
-    silent = Q(heartbeat_at__lt=stale) | Q(heartbeat_at__isnull=True, created_at__lt=stale)
-    rows = RawRecomputation.objects.filter(silent, status__in=(R.PENDING, R.RUNNING))
+    rows = RawRecomputation.objects.filter(
+        jobs.silent("created_at"), status__in=(R.PENDING, R.RUNNING)
+    )
     sent = 0
     for pk, record_id, status, beat in rows.values_list(
         "pk", "record_id", "status", "heartbeat_at"
     ):  # fmt: skip
         task_id = uuid()
-        if not RawRecomputation.objects.filter(pk=pk, status=status, heartbeat_at=beat).update(
-            heartbeat_at=timezone.now(), **({"claimed_by": task_id} if status == R.RUNNING else {})
-        ):  # fmt: skip
+        mine = {"claimed_by": task_id} if status == R.RUNNING else {}
+        if not jobs.lease(RawRecomputation.objects.all(), pk=pk, status=status, heartbeat_at=beat,
+                          **mine):  # fmt: skip
             continue
         log.warning("raw recomputation of record %s silent: queued again", record_id)
-        try:
-            raw_recompute_task.apply_async((record_id,), task_id=task_id)
-        except (OperationalError, OSError) as exc:
-            log.error("raw recomputation of record %s not queued again: %s", record_id, exc)
-            continue
-        sent += 1
+        what = f"raw recomputation of record {record_id}"
+        sent += jobs.send(raw_recompute_task, (record_id,), task_id=task_id, what=what)
     return sent
 
 
