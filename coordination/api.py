@@ -22,14 +22,17 @@ from labs.models import Laboratory
 from labs.services import participant_add
 from proficiency import protocols
 from proficiency.models import Device
-from proficiency.serializers import POSITIVE
 from proficiency.services import (
     comparison_apply_template,
+    device_create,
     measurement_points_generate,
 )
 
 
 class DeviceInSerializer(serializers.ModelSerializer):
+    # the name's rule (stripped, required, length, unique) is proficiency.services.device_create's
+    name = serializers.CharField(required=False, allow_blank=True, trim_whitespace=False)
+
     class Meta:
         model = Device
         fields = [
@@ -37,7 +40,6 @@ class DeviceInSerializer(serializers.ModelSerializer):
             "tolerance_relative", "tolerance_distribution",
         ]  # fmt: skip
         validators: list[Any] = []
-        extra_kwargs = {"nominal_sensitivity": POSITIVE, "tolerance": POSITIVE}
 
 
 class DeviceAdd(ApiView):
@@ -46,9 +48,7 @@ class DeviceAdd(ApiView):
         access = self.access(code)
         require_coordinator(access)
         data = valid_data(DeviceInSerializer(data=request.data))
-        if access.comparison.devices.filter(name=data["name"]).exists():
-            raise ValidationFailed(f"{code} already has a device named {data['name']!r}.")
-        device = Device.objects.create(comparison=access.comparison, **data)
+        device = device_create(comparison=access.comparison, name=data.pop("name", ""), **data)
         return Response(DeviceInSerializer(device).data, status=status.HTTP_201_CREATED)
 
 

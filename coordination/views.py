@@ -11,6 +11,7 @@ import statistics
 from collections import Counter, defaultdict
 from typing import TYPE_CHECKING
 
+from django import forms
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.core.paginator import Paginator
@@ -193,10 +194,23 @@ def device_add(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     form = DeviceForm(request.POST or None, comparison=comparison)
     if request.method == "POST" and form.is_valid():
-        device = form.save()
-        messages.success(request, f"Device {device.name} added.")
-        return redirect("coordinator:comparison", code=code)
+        try:
+            device = services.device_create(comparison=comparison, **form.values())
+        except ApplicationError as exc:
+            _add_errors(form, exc)
+        else:
+            messages.success(request, f"Device {device.name} added.")
+            return redirect("coordinator:comparison", code=code)
     return render(request, "coordinator/device_form.html", {"form": form, "comparison": comparison})
+
+
+def _add_errors(form: forms.BaseForm, exc: ApplicationError) -> None:
+    """A service's refusal as the form's errors: each on its field, else on the form."""
+    fields = [e for e in exc.errors if e["field"] in form.fields]
+    for e in fields:
+        form.add_error(e["field"], e["message"])
+    if not fields:
+        form.add_error(None, exc.message)
 
 
 def _generate(comparison: Comparison, data: dict) -> list[MeasurementPoint]:
