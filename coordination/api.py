@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from django.db import transaction
 from django.urls import path
 from drf_spectacular.utils import extend_schema
 from rest_framework import serializers, status
@@ -19,7 +18,7 @@ from common.errors import ValidationFailed
 from labs.access import require_coordinator
 from labs.api.views import ApiView
 from labs.models import Laboratory
-from labs.services import participant_add
+from labs.services import participants_invite
 from proficiency import protocols
 from proficiency.models import Device
 from proficiency.services import (
@@ -109,10 +108,9 @@ class Invite(ApiView):
         unknown = [w for w in wanted if w not in labs]
         if unknown:
             raise ValidationFailed(f"Unknown laboratories: {', '.join(unknown)}.")
-        with transaction.atomic():  # all invited or none
-            added = [
-                participant_add(comparison=access.comparison, laboratory=labs[w]) for w in wanted
-            ]
+        added = participants_invite(
+            comparison=access.comparison, laboratories=[labs[w] for w in wanted]
+        )
         body = {"participants": [{"laboratory": p.laboratory.name, "code": p.code} for p in added]}
         return Response(body, status=status.HTTP_201_CREATED)
 
