@@ -7,9 +7,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from django.db import transaction
 from django.urls import path
-from drf_spectacular.utils import extend_schema
+from drf_spectacular.utils import extend_schema, extend_schema_field
 from rest_framework import serializers, status
 from rest_framework.request import Request
 from rest_framework.response import Response
@@ -19,17 +18,29 @@ from common.errors import ValidationFailed
 from labs.access import require_coordinator
 from labs.api.views import ApiView
 from labs.models import Laboratory
-from labs.services import participant_add
+from labs.services import participants_invite
 from proficiency import protocols
 from proficiency.models import Device
-from proficiency.serializers import POSITIVE
 from proficiency.services import (
     comparison_apply_template,
+    device_create,
     measurement_points_generate,
 )
 
 
+@extend_schema_field(
+    {"type": "string", "minLength": 1, "maxLength": 80, "description": "e.g. MEMS 1"}
+)
+class _DeviceName(serializers.CharField):
+    """The device name as the API documents it; checked by ``device_create``."""
+
+
 class DeviceInSerializer(serializers.ModelSerializer):
+    # the name's rule (stripped, required, length, unique) is proficiency.services.device_create's
+    # required and at most 80 long in the schema, as before; a blank or long name is
+    # refused by the service with the message the web page gives too
+    name = _DeviceName(allow_blank=True, trim_whitespace=False)
+
     class Meta:
         model = Device
         fields = [
@@ -37,7 +48,6 @@ class DeviceInSerializer(serializers.ModelSerializer):
             "tolerance_relative", "tolerance_distribution",
         ]  # fmt: skip
         validators: list[Any] = []
-        extra_kwargs = {"nominal_sensitivity": POSITIVE, "tolerance": POSITIVE}
 
 
 class DeviceAdd(ApiView):
@@ -46,9 +56,7 @@ class DeviceAdd(ApiView):
         access = self.access(code)
         require_coordinator(access)
         data = valid_data(DeviceInSerializer(data=request.data))
-        if access.comparison.devices.filter(name=data["name"]).exists():
-            raise ValidationFailed(f"{code} already has a device named {data['name']!r}.")
-        device = Device.objects.create(comparison=access.comparison, **data)
+        device = device_create(comparison=access.comparison, name=data.pop("name", ""), **data)
         return Response(DeviceInSerializer(device).data, status=status.HTTP_201_CREATED)
 
 
@@ -109,10 +117,9 @@ class Invite(ApiView):
         unknown = [w for w in wanted if w not in labs]
         if unknown:
             raise ValidationFailed(f"Unknown laboratories: {', '.join(unknown)}.")
-        with transaction.atomic():  # all invited or none
-            added = [
-                participant_add(comparison=access.comparison, laboratory=labs[w]) for w in wanted
-            ]
+        added = participants_invite(
+            comparison=access.comparison, laboratories=[labs[w] for w in wanted]
+        )
         body = {"participants": [{"laboratory": p.laboratory.name, "code": p.code} for p in added]}
         return Response(body, status=status.HTTP_201_CREATED)
 

@@ -86,13 +86,18 @@ class DeviceForm(BootstrapMixin, forms.ModelForm):
     def __init__(self, *args: Any, comparison: Comparison, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self.instance.comparison = comparison
+        # the name's rule is proficiency.services.device_create's (docs/architecture.md §2):
+        # the field only carries the text, its page keeps the required/maxlength attributes
+        name = self.fields["name"]
+        name.widget.attrs.update({"required": True})
+        name.required, name.validators = False, []
 
-    def clean_name(self) -> str:
-        name = self.cleaned_data["name"].strip()
-        taken = Device.objects.filter(comparison=self.instance.comparison, name=name)
-        if taken.exclude(pk=self.instance.pk).exists():
-            raise forms.ValidationError(f"This comparison already has a device named {name!r}.")
-        return name
+    def _post_clean(self) -> None:
+        """No model validation: the service checks the device (ModelForm would do it again)."""
+
+    def values(self) -> dict[str, Any]:
+        """The cleaned fields as ``device_create``'s keyword arguments."""
+        return {f: self.cleaned_data[f] for f in self.Meta.fields}
 
 
 def _floats(text: str) -> list[float]:

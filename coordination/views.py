@@ -11,6 +11,7 @@ import statistics
 from collections import Counter, defaultdict
 from typing import TYPE_CHECKING
 
+from django import forms
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.core.paginator import Paginator
@@ -31,12 +32,13 @@ from coordination.forms import (
     PointOverrideForm,
     ReportNotesForm,
 )
+from labs import services as labs_services
 from labs.access import coordinated, coordinated_comparisons
 from labs.models import Participant, Result, Submission
 from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
 from labs.review import submission_decide, submission_request_check
 from labs.selectors import current_submissions
-from labs.services import participant_add, participant_set_reference
+from labs.services import participant_set_reference
 from proficiency import protocols, services
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.selectors import POINT_ORDER
@@ -193,10 +195,23 @@ def device_add(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     form = DeviceForm(request.POST or None, comparison=comparison)
     if request.method == "POST" and form.is_valid():
-        device = form.save()
-        messages.success(request, f"Device {device.name} added.")
-        return redirect("coordinator:comparison", code=code)
+        try:
+            device = services.device_create(comparison=comparison, **form.values())
+        except ApplicationError as exc:
+            _add_errors(form, exc)
+        else:
+            messages.success(request, f"Device {device.name} added.")
+            return redirect("coordinator:comparison", code=code)
     return render(request, "coordinator/device_form.html", {"form": form, "comparison": comparison})
+
+
+def _add_errors(form: forms.BaseForm, exc: ApplicationError) -> None:
+    """A service's refusal as the form's errors: each on its field, else on the form."""
+    fields = [e for e in exc.errors if e["field"] in form.fields]
+    for e in fields:
+        form.add_error(e["field"], e["message"])
+    if not fields:
+        form.add_error(None, exc.message)
 
 
 def _generate(comparison: Comparison, data: dict) -> list[MeasurementPoint]:
@@ -258,13 +273,15 @@ def participants_invite(request: AuthenticatedHttpRequest, code: str) -> HttpRes
     comparison = coordinated(request, code)
     form = InviteForm(request.POST or None, comparison=comparison)
     if request.method == "POST" and form.is_valid():
-        added = [
-            participant_add(comparison=comparison, laboratory=lab)
-            for lab in form.cleaned_data["laboratories"]
-        ]
-        codes = ", ".join(sorted(p.code for p in added))
-        messages.success(request, f"{len(added)} laboratory(ies) invited: {codes}.")
-        return redirect("coordinator:comparison", code=code)
+        labs = list(form.cleaned_data["laboratories"])
+        try:
+            added = labs_services.participants_invite(comparison=comparison, laboratories=labs)
+        except ApplicationError as exc:
+            _add_errors(form, exc)
+        else:
+            codes = ", ".join(sorted(p.code for p in added))
+            messages.success(request, f"{len(added)} laboratory(ies) invited: {codes}.")
+            return redirect("coordinator:comparison", code=code)
     return render(request, "coordinator/invite.html", {"form": form, "comparison": comparison})
 
 

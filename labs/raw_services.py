@@ -30,6 +30,7 @@ from celery import uuid
 from django.conf import settings
 from django.contrib.auth.models import User
 from django.core.files.base import ContentFile
+from django.core.files.uploadedfile import UploadedFile
 from django.db import IntegrityError, transaction
 from django.utils import timezone
 
@@ -385,26 +386,27 @@ def raw_upload_build(
 
 
 def raw_upload_submit(
-    *, form: Any, participant: Participant, user: User | None
-) -> RawRecord | None:
-    """The web form's upload; errors go onto the form (None returned)."""
-    data = form.cleaned_data
-    try:
-        main = raw_upload_build(
-            file=data["file"], sidecar=data.get("sidecar"), fields=form.meta_fields(),
-            field="file",
+    *,
+    participant: Participant,
+    point_fields: Mapping[str, Any],
+    file: UploadedFile,
+    sidecar: UploadedFile | None = None,
+    meta_fields: Mapping[str, Any] | None = None,
+    reference_file: UploadedFile | None = None,
+    reference_sidecar: UploadedFile | None = None,
+    reference_fields: Mapping[str, Any] | None = None,
+    user: User | None = None,
+) -> RawRecord:
+    """One upload (the page's and the API's): the record, its sidecar and metadata fields,
+    optionally the reference record; :class:`ValidationFailed` naming the field at fault."""
+    main = raw_upload_build(file=file, sidecar=sidecar, fields=meta_fields, field="file")
+    reference = None
+    if reference_file is not None:
+        reference = raw_upload_build(
+            file=reference_file, sidecar=reference_sidecar, fields=reference_fields,
+            field="reference_file",
         )  # fmt: skip
-        reference = None
-        if data.get("reference_file") is not None:
-            reference = raw_upload_build(
-                file=data["reference_file"], sidecar=data.get("reference_sidecar"),
-                fields=form.reference_fields(), field="reference_file",
-            )  # fmt: skip
-        return raw_record_upload(
-            participant=participant, point_fields=form.point_fields(), data=main,
-            reference=reference, user=user,
-        )  # fmt: skip
-    except ValidationFailed as exc:
-        field = (exc.errors[0].get("field") if exc.errors else None) or None
-        form.add_error(field if field in form.fields else None, exc.message)
-        return None
+    return raw_record_upload(
+        participant=participant, point_fields=point_fields, data=main, reference=reference,
+        user=user,
+    )  # fmt: skip

@@ -71,6 +71,21 @@ def participant_add(
     raise StateConflict(f"Could not allocate a participant code in {comparison.code}; retry.")
 
 
+@transaction.atomic
+def participants_invite(
+    *, comparison: Comparison, laboratories: Sequence[Laboratory]
+) -> list[Participant]:
+    """Invite ``laboratories`` to ``comparison``, all or none, in one transaction; each new
+    participant gets a random code (:func:`participant_code_new`), an existing participation
+    is returned unchanged (so a repeated invitation is harmless)."""
+    if not laboratories:
+        raise ValidationFailed(
+            f"Choose at least one laboratory to invite to {comparison.code}.",
+            errors=[{"field": "laboratories", "message": "at least one laboratory"}],
+        )
+    return [participant_add(comparison=comparison, laboratory=lab) for lab in laboratories]
+
+
 St = Submission.Status
 
 # The one place where the submission life cycle is defined. Decided versions are

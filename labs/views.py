@@ -29,7 +29,7 @@ from labs import services
 from labs.access import comparisons_visible_to, managed_lab, managed_labs, participant_page
 from labs.forms import APIKeyCreateForm, ResultGridForm, ResultUploadForm
 from labs.importers.values import human_size
-from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission
+from labs.models import LabAPIKey, Laboratory, Participant, RawRecord, Result, Submission
 from labs.raw import RawUploadLimit
 from labs.raw_forms import RawUploadForm
 from labs.raw_selectors import raw_point_choices, raw_record_figure, raw_record_get, raw_records_of
@@ -44,6 +44,8 @@ from proficiency import protocols
 from proficiency.models import Comparison
 
 if TYPE_CHECKING:
+    from django.contrib.auth.models import User
+
     from common.http import AuthenticatedHttpRequest
 
 CONTENT_TYPES = {
@@ -387,6 +389,27 @@ def raw_data(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     return _raw_data(request, code)
 
 
+def _raw_submit(form: RawUploadForm, participant: Participant, user: User) -> RawRecord | None:
+    """The form's cleaned values to the upload service; its refusal onto the form (None)."""
+    data = form.cleaned_data
+    try:
+        return raw_upload_submit(
+            participant=participant,
+            point_fields=form.point_fields(),
+            file=data["file"],
+            sidecar=data.get("sidecar"),
+            meta_fields=form.meta_fields(),
+            reference_file=data.get("reference_file"),
+            reference_sidecar=data.get("reference_sidecar"),
+            reference_fields=form.reference_fields(),
+            user=user,
+        )
+    except ValidationFailed as exc:
+        field = (exc.errors[0].get("field") if exc.errors else None) or None
+        form.add_error(field if field in form.fields else None, exc.message)
+        return None
+
+
 @csrf_protect
 def _raw_data(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     participant = participant_page(request, code)
@@ -394,7 +417,7 @@ def _raw_data(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     try:
         form = RawUploadForm(request.POST or None, request.FILES or None, points=points)
         if request.method == "POST" and form.is_valid():
-            record = raw_upload_submit(form=form, participant=participant, user=request.user)
+            record = _raw_submit(form, participant, request.user)
             if record is not None:
                 messages.success(request, "The raw record was stored; its recomputation runs now.")
                 return redirect("labs:raw_record", code=code, pk=record.pk)

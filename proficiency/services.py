@@ -4,13 +4,21 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Iterable, Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, TypedDict, Unpack
 
 from django.db import transaction
 
 from common.errors import InvalidTransition, ValidationFailed
 from proficiency import protocols
-from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
+from proficiency.models import (
+    DEFAULT_UNIT,
+    FLOAT_MAX,
+    Comparison,
+    ComparisonStatus,
+    Device,
+    Distribution,
+    MeasurementPoint,
+)
 
 if TYPE_CHECKING:
     from django.contrib.auth.models import User
@@ -183,3 +191,91 @@ def comparison_create(
     comparison.save()
     comparison.coordinators.add(user)
     return comparison
+
+
+# --- devices --------------------------------------------------------------------------------
+
+
+class DeviceFields(TypedDict, total=False):
+    """A device's fields other than its name (docs/architecture.md §2: checked here only)."""
+
+    model: str
+    serial: str
+    unit: str
+    nominal_sensitivity: float | None
+    tolerance: float | None
+    tolerance_relative: bool
+    tolerance_distribution: str
+
+
+DEVICE_NAME_MAX = Device._meta.get_field("name").max_length or 80
+_TEXT_MAX = {"model": 80, "serial": 80, "unit": 20}
+
+
+@transaction.atomic
+def device_create(*, comparison: Comparison, name: str, **fields: Unpack[DeviceFields]) -> Device:
+    """Add a device to ``comparison``: the name stripped, required, at most 80 characters
+    and unique within the comparison; the numbers finite and > 0 when given."""
+    defaults: DeviceFields = {
+        "unit": DEFAULT_UNIT,
+        "tolerance_relative": True,
+        "tolerance_distribution": Distribution.RECTANGULAR,
+    }
+    device = Device(comparison=comparison, **(defaults | fields))
+    device.name = _device_name(comparison, name, exclude_pk=None)
+    _check_device_fields(device)
+    device.save()
+    return device
+
+
+@transaction.atomic
+def device_update(
+    *, device: Device, name: str | None = None, **fields: Unpack[DeviceFields]
+) -> Device:
+    """Change a device's name and/or fields under the rules of :func:`device_create`."""
+    locked = Device.objects.select_for_update().select_related("comparison").get(pk=device.pk)
+    if name is not None:
+        locked.name = _device_name(locked.comparison, name, exclude_pk=locked.pk)
+    for field, value in fields.items():
+        setattr(locked, field, value)
+    _check_device_fields(locked)
+    locked.save()
+    return locked
+
+
+def _refuse(field: str, message: str) -> ValidationFailed:
+    return ValidationFailed(message, errors=[{"field": field, "message": message}])
+
+
+def _device_name(comparison: Comparison, name: str, *, exclude_pk: int | None) -> str:
+    name = name.strip()
+    if not name:
+        raise _refuse("name", f"A device of {comparison.code} needs a name.")
+    if len(name) > DEVICE_NAME_MAX:
+        raise _refuse(
+            "name",
+            f"The device name is {len(name)} characters long; at most {DEVICE_NAME_MAX}.",
+        )
+    taken = Device.objects.filter(comparison=comparison, name=name)
+    if (taken.exclude(pk=exclude_pk) if exclude_pk else taken).exists():
+        raise _refuse("name", f"{comparison.code} already has a device named {name!r}.")
+    return name
+
+
+def _check_device_fields(device: Device) -> None:
+    errors: list[dict[str, Any]] = []
+    for field in ("nominal_sensitivity", "tolerance"):
+        value = getattr(device, field)
+        if value is not None and not 0 < value <= FLOAT_MAX:
+            errors.append({"field": field, "message": f"must be a finite number > 0, got {value}"})
+    for field, limit in _TEXT_MAX.items():
+        if len(getattr(device, field)) > limit:
+            errors.append({"field": field, "message": f"at most {limit} characters"})
+    if not device.unit.strip():
+        errors.append({"field": "unit", "message": "a device needs a unit"})
+    if device.tolerance_distribution not in Distribution.values:
+        known = ", ".join(Distribution.values)
+        errors.append({"field": "tolerance_distribution", "message": f"one of {known}"})
+    if errors:
+        where = "; ".join(f"{e['field']}: {e['message']}" for e in errors)
+        raise ValidationFailed(f"Device {device.name!r} not stored: {where}.", errors=errors)

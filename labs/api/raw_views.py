@@ -23,7 +23,7 @@ from labs.api.views import check_content_length as _check_content_length
 from labs.models import RawRecord
 from labs.raw import RawUploadLimit
 from labs.raw_selectors import raw_record_get, raw_records_of, raw_records_of_comparison
-from labs.raw_services import raw_record_upload, raw_request_limit, raw_upload_build
+from labs.raw_services import raw_request_limit, raw_upload_submit
 
 
 def raw_records_in_scope(access: ComparisonAccess) -> QuerySet[RawRecord]:
@@ -73,22 +73,15 @@ class RawDataCollection(ApiView, generics.ListAPIView):
         recomputed in the background (`recomputation.status`)."""
         participant = require_participant(self.access(code))
         data = validated(rs.RawUploadRequestSerializer, request.data)
-        main = raw_upload_build(
-            file=data["file"], sidecar=data.get("sidecar"), fields=data, field="file"
-        )
-        reference = None
-        if data.get("reference_file") is not None:
-            reference = raw_upload_build(
-                file=data["reference_file"],
-                sidecar=data.get("reference_sidecar"),
-                fields=rs.reference_fields(data),
-                field="reference_file",
-            )
-        record = raw_record_upload(
+        record = raw_upload_submit(
             participant=participant,
             point_fields=data,
-            data=main,
-            reference=reference,
+            file=data["file"],
+            sidecar=data.get("sidecar"),
+            meta_fields=data,
+            reference_file=data.get("reference_file"),
+            reference_sidecar=data.get("reference_sidecar"),
+            reference_fields=rs.reference_fields(data),
             user=caller_of(request).user,
         )
         record = raw_record_get(raw_records_of(participant), record.pk)

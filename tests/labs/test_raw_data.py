@@ -10,9 +10,10 @@ import pytest
 from django.core.files.uploadedfile import SimpleUploadedFile
 
 from analysis.core.signals.sinefit import fit_known_frequency
-from labs.models import Membership, RawFile, RawRecomputation, RawRecord
+from common.errors import ValidationFailed
+from labs.models import Membership, Participant, RawFile, RawRecomputation, RawRecord
 from labs.raw import PLOT_HARMONICS, _model
-from labs.raw_services import en_number, raw_recompute_execute
+from labs.raw_services import en_number, raw_recompute_execute, raw_upload_submit
 from proficiency.models import MeasurementPoint
 from proficiency.services import measurement_points_generate
 from tests.factories import (
@@ -244,3 +245,25 @@ def test_a_pending_recomputation_whose_message_was_lost_is_sent_again(
     RawRecomputation.objects.update(created_at=timezone.now() - dt.timedelta(hours=2))
     assert raw_sweep() == 1
     assert RawRecomputation.objects.get().status == "succeeded"
+
+
+def test_the_upload_service_takes_values_not_a_form(world, django_capture_on_commit_callbacks):
+    """raw_upload_submit is called with plain values (the page and the API both do)."""
+    participant = Participant.objects.get(code="W11")
+    record = linear()
+    point = {"device": "MEMS 1", "axis": "X", "frequency_hz": 10.0, "bench": "linear"}
+    with pytest.raises(ValidationFailed) as refused:
+        raw_upload_submit(
+            participant=participant, point_fields=point,
+            file=SimpleUploadedFile("run1.bin", int16_bytes(record)),
+            sidecar=SimpleUploadedFile("run1.bin.json", b"{not json"), user=None,
+        )  # fmt: skip
+    assert refused.value.errors[0]["field"] == "file"
+    assert not RawRecord.objects.exists()
+    with django_capture_on_commit_callbacks(execute=True):
+        stored = raw_upload_submit(
+            participant=participant, point_fields=point,
+            file=SimpleUploadedFile("run1.bin", int16_bytes(record)),
+            sidecar=SimpleUploadedFile("run1.bin.json", sidecar(record)), user=None,
+        )  # fmt: skip
+    assert RawRecord.objects.get() == stored
