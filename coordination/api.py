@@ -22,6 +22,7 @@ from labs.services import participants_invite
 from proficiency import protocols
 from proficiency.models import Device
 from proficiency.services import (
+    DEVICE_FIELDS,
     comparison_apply_template,
     device_create,
     measurement_points_generate,
@@ -43,10 +44,7 @@ class DeviceInSerializer(serializers.ModelSerializer):
 
     class Meta:
         model = Device
-        fields = [
-            "name", "model", "serial", "unit", "nominal_sensitivity", "tolerance",
-            "tolerance_relative", "tolerance_distribution",
-        ]  # fmt: skip
+        fields = DEVICE_FIELDS
         validators: list[Any] = []
 
 

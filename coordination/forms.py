@@ -19,6 +19,7 @@ from proficiency.models import (
     Direction,
     MeasurementPoint,
 )
+from proficiency.services import DEVICE_FIELDS
 
 TEMPLATE_CHOICES = [("", "From scratch (add devices and points yourself)")] + [
     (key, t.title) for key, t in protocols.TEMPLATES.items()
@@ -71,16 +72,7 @@ class ComparisonCreateForm(ComparisonForm):
 class DeviceForm(BootstrapMixin, forms.ModelForm):
     class Meta:
         model = Device
-        fields = [
-            "name",
-            "model",
-            "serial",
-            "unit",
-            "nominal_sensitivity",
-            "tolerance",
-            "tolerance_relative",
-            "tolerance_distribution",
-        ]
+        fields = DEVICE_FIELDS
         labels = {"tolerance": "Tolerance (± half-width)", "tolerance_relative": "Tolerance in %"}
 
     def __init__(self, *args: Any, comparison: Comparison, **kwargs: Any) -> None:

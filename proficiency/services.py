@@ -208,6 +208,9 @@ class DeviceFields(TypedDict, total=False):
     tolerance_distribution: str
 
 
+#: A device's editable fields, in the order every form, serializer and table shows them.
+DEVICE_FIELDS = ["name", *DeviceFields.__annotations__]
+
 DEVICE_NAME_MAX = Device._meta.get_field("name").max_length or 80
 _TEXT_MAX = {"model": 80, "serial": 80, "unit": 20}
 

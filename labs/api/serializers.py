@@ -14,6 +14,7 @@ from rest_framework import serializers
 from common.rendering import ValuesRendering
 from labs.models import Result, Submission
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
+from proficiency.services import DEVICE_FIELDS
 
 # ---------------------------------------------------------------- errors
 
@@ -78,16 +79,7 @@ class ComparisonSerializer(serializers.ModelSerializer):
 class DeviceSerializer(serializers.ModelSerializer):
     class Meta:
         model = Device
-        fields = [
-            "name",
-            "model",
-            "serial",
-            "unit",
-            "nominal_sensitivity",
-            "tolerance",
-            "tolerance_relative",
-            "tolerance_distribution",
-        ]
+        fields = DEVICE_FIELDS
 
 
 class ComparisonDetailSerializer(serializers.ModelSerializer):
