@@ -270,17 +270,16 @@ def lab_matrices(run: AnalysisRun, filters: dict[str, str]) -> list[Any]:
     results ``run`` scored (never stored for a whole round: they grow with labs squared).
     A published run's matrix stays what was published when results change later."""
     comparison = run.comparison
-    points = MeasurementPoint.objects.filter(comparison=comparison)
-    for key, field in (("device", "device__name"), ("axis", "axis"), ("bench", "bench"),
-                       ("direction", "direction")):  # fmt: skip
-        if filters.get(key):
-            points = points.filter(**{field: filters[key]})
-    if filters.get("frequency_hz"):
-        f = float(filters["frequency_hz"])
-        points = points.filter(
-            frequency_hz__gte=f - abs(f) * 1e-9, frequency_hz__lte=f + abs(f) * 1e-9
+    exact = {k: v for k, v in filters.items() if v and k in SCORE_FILTERS}
+    exact.pop("lab", None)
+    frequency = exact.pop("frequency_hz", None)
+    scored = Score.objects.filter(run=run, **{SCORE_FILTERS[k]: v for k, v in exact.items()})
+    if frequency:  # within rounding of the number as typed
+        f = float(frequency)
+        scored = scored.filter(
+            result__measurement_point__frequency_hz__range=(f - abs(f) * 1e-9, f + abs(f) * 1e-9)
         )
-    scored = Score.objects.filter(run=run, result__measurement_point__in=points).order_by()
+    scored = scored.order_by()
     point_ids = sorted(set(scored.values_list("result__measurement_point_id", flat=True)))
     if len(point_ids) > MAX_LAB_MATRIX_POINTS:
         raise ValidationFailed(

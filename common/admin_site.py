@@ -28,16 +28,20 @@ class SuperuserAdminConfig(AdminConfig):
     default_site = "common.admin_site.SuperuserAdminSite"
 
 
-class RecordedByServicesAdmin(admin.ModelAdmin):
-    """Rows the services write and the rest of the service relies on (submissions and
-    their results, analysis runs and their outputs, reports): the admin shows them but
-    cannot add or change them, because an edit here would bypass the state machine, the
-    audit log and the invariants the runs rely on (a submitted or accepted version's
-    results never change; a published run's scores are what was published).  Decisions
-    are made on the coordinator's pages and through the API; deleting stays possible."""
+class ViewOnly:
+    """An admin (or inline) that shows rows but cannot add or change them."""
 
     def has_add_permission(self, request: HttpRequest, obj: Model | None = None) -> bool:
         return False
 
     def has_change_permission(self, request: HttpRequest, obj: Model | None = None) -> bool:
         return False
+
+
+class RecordedByServicesAdmin(ViewOnly, admin.ModelAdmin):
+    """Rows the services write and the rest of the service relies on (submissions and
+    their results, analysis runs and their outputs, reports): the admin shows them but
+    cannot add or change them, because an edit here would bypass the state machine, the
+    audit log and the invariants the runs rely on (a submitted or accepted version's
+    results never change; a published run's scores are what was published).  Decisions
+    are made on the coordinator's pages and through the API; deleting stays possible."""

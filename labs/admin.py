@@ -1,9 +1,7 @@
 from django.contrib import admin
-from django.db.models import Model
-from django.http import HttpRequest
 from rest_framework_api_key.admin import APIKeyModelAdmin
 
-from common.admin_site import RecordedByServicesAdmin
+from common.admin_site import RecordedByServicesAdmin, ViewOnly
 from labs.models import (
     LabAPIKey,
     Laboratory,
@@ -41,17 +39,11 @@ class ParticipantAdmin(RecordedByServicesAdmin):
     list_select_related = ["comparison", "laboratory"]
 
 
-class ResultInline(admin.TabularInline):
+class ResultInline(ViewOnly, admin.TabularInline):
     model = Result
     extra = 0
     can_delete = False
     raw_id_fields = ["measurement_point"]
-
-    def has_add_permission(self, request: HttpRequest, obj: Model | None = None) -> bool:
-        return False
-
-    def has_change_permission(self, request: HttpRequest, obj: Model | None = None) -> bool:
-        return False
 
 
 @admin.register(Submission)
