@@ -29,11 +29,11 @@ import numpy as np
 
 from analysis.core import consistency as iso
 from analysis.core.groups import Groups
+from common.points import POINT_FIELDS
 
 if TYPE_CHECKING:
     from analysis.pipeline import Analysis, ResultTable
 
-POINT_KEYS = ("device", "axis", "frequency_hz", "bench", "direction")
 VERDICTS = ("correct", "straggler", "outlier")
 NA = "not applicable"
 TESTS = ("grubbs_single", "grubbs_double", "cochran", "mandel_h", "mandel_k")
@@ -150,7 +150,7 @@ def point_records(
     bounds = np.concatenate(([0], np.cumsum(groups.counts())))
     labs = _LabColumns(table, c)
     for g, point in enumerate(points):
-        rec: dict[str, Any] = dict(zip(POINT_KEYS, point, strict=True))
+        rec: dict[str, Any] = dict(zip(POINT_FIELDS, point, strict=True))
         rec |= _point_tests(table, c, g)
         rec["labs"] = labs.entries(by_point[bounds[g] : bounds[g + 1]])
         rec["signals"] = _signals(rec)
@@ -258,7 +258,7 @@ def csv_rows(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
 
 def csv_tuples(rec: dict[str, Any]) -> Iterator[tuple[Any, ...]]:
     """:func:`csv_rows` of one record as tuples in :data:`CSV_COLUMNS` order (None: empty)."""
-    point = tuple(rec[k] for k in POINT_KEYS)
+    point = tuple(rec[k] for k in POINT_FIELDS)
     for name in TESTS:
         t = rec[name]
         if not t["applicable"]:

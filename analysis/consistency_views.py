@@ -15,6 +15,7 @@ from analysis import consistency as tests
 from analysis.models import AssignedValue
 from analysis.selectors import run_consistency
 from analysis.views import Viewer, _page, _render, _viewer
+from common.points import POINT_FIELDS
 from labs.importers import write_table
 
 if TYPE_CHECKING:
@@ -95,8 +96,7 @@ def consistency_download(
     records = []
     for a in run_consistency(viewer.run, signals_only=False).iterator(chunk_size=500):
         p = a.measurement_point
-        keys = {"device": p.device.name, "axis": p.axis, "frequency_hz": p.frequency_hz,
-                "bench": p.bench, "direction": p.direction}  # fmt: skip
+        keys = dict(zip(POINT_FIELDS, p.key.measurand, strict=True))
         if a.consistency:
             records.append(keys | a.consistency)
     data = write_table(tests.csv_rows(records), columns=tests.CSV_COLUMNS)

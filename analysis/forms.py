@@ -7,7 +7,7 @@ from typing import Any, cast
 from django import forms
 
 from common.forms import BootstrapMixin
-from labs.importers.values import format_number
+from common.points import POINT_FIELDS, format_number, point_label
 from proficiency.models import Axis, Bench, Comparison, Direction, MeasurementPoint
 
 ALL = [("", "All")]
@@ -22,9 +22,7 @@ FACTORS = [
 
 
 def point_choice_label(p: MeasurementPoint) -> str:
-    return (
-        f"{p.device.name} · {p.axis} · {format_number(p.frequency_hz)} Hz · {p.bench} {p.direction}"
-    )
+    return point_label(p.key, sep=" · ")
 
 
 class ScoreFilterForm(BootstrapMixin, forms.Form):
@@ -94,5 +92,5 @@ class CompatibilityForm(ScoreFilterForm):
         p = self.points.get(pk) if pk else next(iter(self.points.values()), None)
         if p is None:
             return {}
-        return {"device": p.device.name, "axis": p.axis, "frequency_hz": repr(p.frequency_hz),
-                "bench": p.bench, "direction": p.direction}  # fmt: skip
+        # as text, the frequency in full (repr): lab_matrices reads them as GET filters
+        return {k: str(v) for k, v in zip(POINT_FIELDS, p.key.measurand, strict=True)}

@@ -19,13 +19,13 @@ import orjson
 
 from analysis.consistency import iter_records
 from analysis.pipeline import (
-    POINT_KEYS,
     SIGMA_KEYS,
     Analysis,
     score_columns,
     score_record_chunks,
     to_json,
 )
+from common.points import POINT_FIELDS
 
 CHUNK = 20_000  # results per chunk of output
 _JSON = orjson.OPT_SERIALIZE_NUMPY  # NaN and inf are written as null
@@ -93,11 +93,11 @@ def score_json_chunks(analysis: Analysis, size: int) -> Iterator[bytes]:
     columns, has_sigma = score_columns(analysis)
     index = analysis.groups.index
     heads = np.array(
-        [b"{" + b",".join(_pair(k, v) for k, v in zip(POINT_KEYS, p, strict=True))
+        [b"{" + b",".join(_pair(k, v) for k, v in zip(POINT_FIELDS, p, strict=True))
          for p in analysis.points],
         dtype=object,
     )  # fmt: skip
-    rest = [k for k in columns if k not in POINT_KEYS]
+    rest = [k for k in columns if k not in POINT_FIELDS]
     prefixes = {k: b"," + orjson.dumps(k) + b":" for k in rest}
     memo: dict[str, dict[Any, bytes]] = {k: {} for k in rest}
     for start in range(0, has_sigma.size, size):

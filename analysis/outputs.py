@@ -13,13 +13,14 @@ from typing import Any
 import numpy as np
 
 from analysis.bulk import Column, copy_rows, is_postgresql
-from analysis.consistency import POINT_KEYS, consistency_records
+from analysis.consistency import consistency_records
 from analysis.core.compatibility import CompatibilityMatrix as CoreMatrix
 from analysis.core.pooled import Moments
 from analysis.core.scores import FLAG_LABELS
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.pipeline import Analysis, excluded_labs, json_value, matrix_record, point_method_of
 from analysis.selectors import LoadedRound
+from common.points import POINT_FIELDS
 
 BATCH = 5000
 _FLAGS = np.array([s.encode() for s in FLAG_LABELS])
@@ -53,7 +54,9 @@ def assigned_rows(run: AnalysisRun, loaded: LoadedRound, a: Analysis) -> list[As
 def stored_consistency(a: Analysis) -> list[dict[str, Any]]:
     """Per point, its consistency record without the point keys (the row names the point):
     per-point statistics, so a chunk holding all results of its points computes them."""
-    return [{k: v for k, v in rec.items() if k not in POINT_KEYS} for rec in consistency_records(a)]
+    return [
+        {k: v for k, v in rec.items() if k not in POINT_FIELDS} for rec in consistency_records(a)
+    ]
 
 
 def score_columns(run_id: int, loaded: LoadedRound, a: Analysis) -> list[Column]:

@@ -24,9 +24,9 @@ from analysis.core.groups import CoreInputError, FloatArray, Groups
 from analysis.core.pooled import Moments
 from analysis.core.scores import FLAG_LABELS, Scores, compute_scores
 from analysis.core.types import AssignedValues
+from common.points import POINT_FIELDS, point_label
 from labs.importers import ResultRow
 
-POINT_KEYS = ("device", "axis", "frequency_hz", "bench", "direction")
 METHODS = (
     "reference", "nominal", "weighted_mean", "algorithm_a", "median", "median_niqr", "q_hampel",
     "dersimonian_laird",
@@ -172,7 +172,7 @@ NO_SIGMA_PT = SigmaPtSpec()
 class Analysis:
     table: ResultTable
     groups: Groups
-    points: list[tuple[Any, ...]]  # one POINT_KEYS tuple per group
+    points: list[tuple[Any, ...]]  # one POINT_FIELDS tuple per group
     assigned: AssignedValues
     sigma_pt: FloatArray  # NaN where σ_pt is not used
     scores: Scores
@@ -347,7 +347,7 @@ def _reference(
     """The reference laboratory's results, U(x_pt) its reported U (its own k)."""
     missing = np.flatnonzero(groups.sum(is_ref) == 0)
     if missing.size:
-        names = "; ".join(_point_label(points[g]) for g in missing[:10])
+        names = "; ".join(point_label(points[g], sep=" ") for g in missing[:10])
         raise CoreInputError(
             f"the reference laboratory has no result for {missing.size} measurement point(s): "
             f"{names}"
@@ -413,11 +413,6 @@ def nonfinite_points(analysis: Analysis, m: Moments) -> np.ndarray:
     with_z = np.isfinite(analysis.sigma_pt)[groups.index]
     per_result |= with_z & ~(np.isfinite(s.z) & np.isfinite(s.z_prime))
     return bad | (np.bincount(groups.index[per_result], minlength=groups.n_groups) > 0)
-
-
-def _point_label(point: tuple[Any, ...]) -> str:
-    device, axis, f, bench, direction = point
-    return f"{device} {axis} {f:g} Hz {bench} {direction}"
 
 
 def point_method_of(values: AssignedValues, g: int) -> str:
@@ -491,7 +486,7 @@ def assigned_records(analysis: Analysis) -> list[dict[str, Any]]:
     excluded = excluded_labs(analysis)
     out = []
     for g, point in enumerate(analysis.points):
-        rec: dict[str, Any] = dict(zip(POINT_KEYS, point, strict=True))
+        rec: dict[str, Any] = dict(zip(POINT_FIELDS, point, strict=True))
         rec |= {
             "value": json_value(a.value[g]),
             "standard_uncertainty": json_value(a.standard_uncertainty[g]),

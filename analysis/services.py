@@ -82,6 +82,7 @@ from analysis.tasks import analysis_chunk_task, analysis_finish_task, analysis_r
 from common import jobs
 from common.errors import ApplicationError, StateConflict, ValidationFailed
 from common.jobs import heartbeat
+from common.points import POINT_LOOKUPS
 from labs.models import Result
 from labs.selectors import current_submissions
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint, SigmaPtMode
@@ -497,7 +498,7 @@ def analysis_run_finish(*, run_id: int) -> str:
 def _matrices(run: AnalysisRun, parts: list[dict]) -> list:
     point_ids, m = moments_from_json(parts)
     rows = MeasurementPoint.objects.filter(pk__in=point_ids.tolist()).values_list(
-        "pk", "device__name", "axis", "frequency_hz", "bench", "direction"
+        "pk", *POINT_LOOKUPS
     )
     by_id = {r[0]: r[1:] for r in rows}
     cols = list(zip(*(by_id[int(p)] for p in point_ids), strict=True))
@@ -660,7 +661,7 @@ def _compute(run: AnalysisRun, loaded: LoadedRound) -> Analysis:
     reference = _reference_code(comparison)
     specs = [point_spec(comparison, p, reference) for p in loaded.points]
     _check_specs(specs, loaded)
-    keys = [(p.device.name, p.axis, p.frequency_hz, p.bench, p.direction) for p in loaded.points]
+    keys = [p.key.measurand for p in loaded.points]
     values = assigned_values_mixed(loaded.table, loaded.groups, keys, specs)
     sigma = _sigma(comparison, loaded, values)
     return analyse_grouped(

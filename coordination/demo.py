@@ -316,14 +316,7 @@ def _raw_records(participant: Participant) -> None:
         p = result.measurement_point
         truth = (result.value * RAW_BIAS, 419.0, 424.0)
         imp = synthetic.Imperfections(noise_digits=1.5, quantise=True, seed=11)
-        point = {
-            "device": p.device.name,
-            "axis": p.axis,
-            "frequency_hz": p.frequency_hz,
-            "bench": p.bench,
-            "direction": p.direction,
-            "amplitude_m_s2": p.amplitude_m_s2,
-        }
+        point = p.key._asdict()
         if bench == "linear":
             mems = synthetic.linear_record(truth, duration=RAW_SECONDS, imp=imp)
             reference = None

@@ -37,6 +37,7 @@ from django.db.models import Max
 from django.utils import timezone
 
 from common.errors import NotVisible, StateConflict, ValidationFailed
+from common.points import POINT_LOOKUPS
 from labs.importers import ImportErrors, PointKey, ResultRow, RowError, TableContext
 from labs.importers.errors import MAX_LISTED_ERRORS, more_problems
 from labs.importers.stream import Chunk, read_chunks
@@ -238,7 +239,7 @@ class _Import:
         self.drafts_submitted: list[tuple[int, int, int]] = []
 
     def _points(self, comparison: Comparison) -> None:
-        fields = ("device__name", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2")
+        fields = (*POINT_LOOKUPS, "amplitude_m_s2")
         pk_by_key = {
             PointKey(*key): pk
             for pk, *key in comparison.measurement_points.values_list("pk", *fields).iterator(
@@ -248,7 +249,7 @@ class _Import:
         self.point_keys = list(self.context.points or ())
         self.point_pks = [pk_by_key[p] for p in self.point_keys]
         self.point_index = {p: i for i, p in enumerate(self.point_keys)}
-        self.row_point: dict[tuple[object, ...], int] = {}  # memo: a row's fields -> index
+        self.row_point: dict[PointKey, int] = {}  # memo: a row's point -> index
 
     def _participants(self, comparison: Comparison) -> None:
         """Every participant, locked so no lab's submission collides with a version here."""
@@ -306,8 +307,7 @@ class _Import:
 
     def _point(self, row: ResultRow) -> int:
         """The index of the one point the row fits (the validation made sure there is one)."""
-        key = (row.device, row.axis, row.frequency_hz, row.bench, row.direction,
-               row.amplitude_m_s2)  # fmt: skip
+        key = row.point
         index = self.row_point.get(key)
         if index is None:
             index = self.row_point[key] = self.point_index[self.context.matching_points(row)[0]]

@@ -15,7 +15,8 @@ from django import forms
 from django.conf import settings
 from django.core.files.uploadedfile import UploadedFile
 
-from labs.importers.values import format_number, human_size
+from common.points import format_number
+from labs.importers.values import human_size
 from labs.models import LabAPIKey, Result
 from proficiency.models import MeasurementPoint
 
@@ -33,11 +34,6 @@ GRID_COLUMNS: dict[str, tuple[str, str, int]] = {
 #: A row with none of these filled in is left out (a partial draft is allowed).
 CONTENT_COLUMNS = ("sensitivity", "expanded_uncertainty", "dof", "repeat_sd", "n_repeats", "note")
 DEFAULT_K = "2"
-
-
-def point_label(point: MeasurementPoint) -> str:
-    """``MEMS 1, X, 5 Hz, linear vertical`` — the same words the services use."""
-    return str(point)
 
 
 def _number(value: float | None) -> str:
@@ -86,7 +82,7 @@ class ResultGridForm(forms.Form):
         for i, point in enumerate(self.points):
             for name, (label, _, max_length) in GRID_COLUMNS.items():
                 self.fields[self.key(i, name)] = forms.CharField(
-                    label=f"{label}, {point_label(point)}",
+                    label=f"{label}, {point}",
                     required=False,
                     max_length=max_length,
                     initial=DEFAULT_K if name == "coverage_factor" else "",

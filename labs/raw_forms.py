@@ -41,10 +41,7 @@ class RawUploadForm(forms.Form):
 
     def point_fields(self) -> dict[str, Any]:
         p = self.cleaned_data["point"]
-        return {
-            "device": p.device.name, "axis": p.axis, "frequency_hz": p.frequency_hz,
-            "bench": p.bench, "direction": p.direction, "amplitude_m_s2": p.amplitude_m_s2,
-        }  # fmt: skip
+        return dict(p.key._asdict())
 
     def meta_fields(self) -> dict[str, Any]:
         return {k: v for k, v in self.cleaned_data.items() if isinstance(v, str)}

@@ -41,6 +41,7 @@ from analysis.core.signals.sensitivity import record_sensitivity
 from common import jobs
 from common.errors import RequestTooLarge, ValidationFailed
 from common.jobs import heartbeat
+from common.points import PointKey
 from labs.importers.values import human_size
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord, Result, Submission
 from labs.raw import form_metadata, read_record, sidecar_json
@@ -51,7 +52,6 @@ from proficiency.models import MeasurementPoint
 log = logging.getLogger(__name__)
 R = RawRecomputation.Status
 METHOD = "sine-fit"
-POINT_FIELDS = ("device", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2")
 
 
 @dataclass(frozen=True)
@@ -111,7 +111,7 @@ def raw_point_find(participant: Participant, fields: Mapping[str, Any]) -> Measu
         amplitude_m_s2=fields.get("amplitude_m_s2"),
     ).first()
     if found is None:
-        described = ", ".join(f"{k} {fields.get(k)}" for k in POINT_FIELDS if fields.get(k))
+        described = ", ".join(f"{k} {fields.get(k)}" for k in PointKey._fields if fields.get(k))
         raise ValidationFailed(
             f"{participant.comparison.code} has no measurement point {described}; see the "
             "comparison's measurement points (the results template lists them).",

@@ -8,6 +8,7 @@ from django.conf import settings
 from django.db import models
 from django.db.models import Q
 
+from common.points import PointKey, point_label
 from proficiency import protocols
 
 FLOAT_MAX = sys.float_info.max  # "finite" in a CHECK constraint: NaN and ±inf both fail <= max
@@ -220,9 +221,18 @@ class MeasurementPoint(models.Model):
         ]
 
     def __str__(self) -> str:
-        return (
-            f"{self.device.name}, {self.axis}, {self.frequency_hz:g} Hz, "
-            f"{self.bench} {self.direction}"
+        return point_label(self.key)
+
+    @property
+    def key(self) -> PointKey:
+        """The point by value (reads ``device``: select it with the point)."""
+        return PointKey(
+            self.device.name,
+            self.axis,
+            self.frequency_hz,
+            self.bench,
+            self.direction,
+            self.amplitude_m_s2,
         )
 
 

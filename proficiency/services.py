@@ -65,10 +65,11 @@ def comparison_transition(*, comparison: Comparison, to: str) -> Comparison:
     return locked
 
 
-PointKey = tuple[int, str, float, str, str, float | None]
+#: A point by its device's id, as the unique constraint sees it (no query for the device names).
+_IdKey = tuple[int, str, float, str, str, float | None]
 
 
-def _point_key(p: MeasurementPoint) -> PointKey:
+def _point_key(p: MeasurementPoint) -> _IdKey:
     return (p.device_id, p.axis, p.frequency_hz, p.bench, p.direction, p.amplitude_m_s2)
 
 

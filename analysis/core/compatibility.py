@@ -23,6 +23,7 @@ from numpy.typing import ArrayLike
 
 from analysis.core.aggregate import Aggregate, aggregate, check_coverage_factor
 from analysis.core.groups import BoolArray, CoreInputError, FloatArray, Groups, IntArray, as_finite
+from common.points import POINT_FIELDS
 
 #: Above this many cells (groups × width²) the batch form works block by block
 #: instead of on one padded 3-D array (8 bytes a cell: 2**24 cells = 128 MiB).
@@ -32,8 +33,7 @@ _BAND_CELLS = 2**15
 # u_i² − u_pt² below this fraction of u_i² counts as "not positive" (sole contributor).
 _COX_RTOL = 1e-9
 
-LABEL_COLUMNS = ("lab", "device", "axis", "frequency_hz", "bench", "direction")
-MEASUREMENT_POINT = ("device", "axis", "frequency_hz", "bench", "direction")
+LABEL_COLUMNS = ("lab", *POINT_FIELDS)
 #: Factor name -> label column (``frequency`` reads ``frequency_hz``).
 FACTORS = {c.removesuffix("_hz"): c for c in LABEL_COLUMNS}
 
@@ -242,7 +242,7 @@ def default_by(factor: str) -> tuple[str, ...]:
     ``lab`` the whole measurement point."""
     col = _factor_column(factor)
     if col == "lab":
-        return MEASUREMENT_POINT
+        return POINT_FIELDS
     return tuple(c for c in ("device", "axis") if c != col)
 
 

@@ -8,6 +8,8 @@ from datetime import datetime
 
 import numpy as np
 
+from common.points import PointKey, point_label
+
 SUMMARY = "summary"
 PARTICIPANT = "participant"
 
@@ -40,12 +42,20 @@ class PointInfo:
     unit: str
 
     @property
+    def key(self) -> PointKey:
+        return PointKey(
+            self.device, self.axis, self.frequency_hz, self.bench, self.direction,
+            self.amplitude_m_s2,
+        )  # fmt: skip
+
+    @property
     def label(self) -> str:
-        return f"{self.axis}, {self.frequency_hz:g} Hz, {self.bench} {self.direction}"
+        """Without the device: the report's sections are headed by it."""
+        return point_label(self.key, device=False)
 
     @property
     def full_label(self) -> str:
-        return f"{self.device}, {self.label}"
+        return point_label(self.key)
 
 
 @dataclass(frozen=True)

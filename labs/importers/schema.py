@@ -5,7 +5,9 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Literal, NamedTuple
+from typing import Literal
+
+from common.points import PointKey as PointKey  # re-exported: the importers' key type
 
 from .matching import FrequencyIndex, close
 from .values import CANONICAL_UNIT
@@ -49,17 +51,6 @@ NOTE_MAX_CHARS = 500
 #: The most repeats ``n_repeats`` may count (a whole number, stored as a 32-bit integer).
 MAX_REPEATS = 1_000_000_000
 DEFAULT_COVERAGE_FACTOR = 2.0
-
-
-class PointKey(NamedTuple):
-    """One measurement point (docs/domain.md §2): device × axis × frequency × bench × direction."""
-
-    device: str
-    axis: str
-    frequency_hz: float
-    bench: str
-    direction: str
-    amplitude_m_s2: float | None = None
 
 
 @dataclass(frozen=True, kw_only=True, slots=True)

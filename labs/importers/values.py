@@ -12,6 +12,7 @@ import math
 import re
 from collections.abc import Iterable
 
+from common.points import format_number
 from common.sizes import human_size as human_size  # re-exported for the importers' callers
 
 #: A text cell starting with one of these (after spaces) is executed by some spreadsheets
@@ -105,13 +106,6 @@ def magnitude_problem(value: float) -> str | None:
 
 def is_blank(raw: object) -> bool:
     return raw is None or (isinstance(raw, str) and not raw.strip())
-
-
-def format_number(value: float) -> str:
-    """Short display of a number in messages: ``-3`` rather than ``-3.0``."""
-    if math.isfinite(value) and value == int(value) and abs(value) < 1e15:
-        return str(int(value))
-    return repr(value)
 
 
 def display(raw: object) -> str:

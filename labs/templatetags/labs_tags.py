@@ -11,10 +11,10 @@ from django.db.models import QuerySet
 from django.utils import timezone
 from django.utils.html import format_html
 
+from common.points import format_number, point_label
 from labs.access import managed_labs
-from labs.importers.values import format_number
 from labs.models import Laboratory, Submission
-from proficiency.models import ComparisonStatus
+from proficiency.models import ComparisonStatus, MeasurementPoint
 from proficiency.protocols import BenchPlan
 
 register = template.Library()
@@ -73,6 +73,12 @@ def managed_laboratories(user: User | AnonymousUser) -> QuerySet[Laboratory]:
 def num(value: float | None) -> str:
     """A stored number in full precision without a trailing ``.0`` (``420``, ``8.25``)."""
     return "" if value is None else format_number(float(value))
+
+
+@register.filter
+def point(value: MeasurementPoint, sep: str = ", ") -> str:
+    """A measurement point's label (``MEMS 1 · X · 5 Hz · linear vertical`` with ``" · "``)."""
+    return point_label(value.key, sep=sep)
 
 
 @register.filter

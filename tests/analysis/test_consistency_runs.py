@@ -12,12 +12,12 @@ import pytest
 from django.contrib.auth import get_user_model
 from django.core.management import call_command
 
-from analysis.consistency import POINT_KEYS
 from analysis.models import AssignedValue
 from analysis.reports.assemble import clear_run_contexts, report_data
 from analysis.reports.render import render_report
 from analysis.selectors import accepted_results
 from analysis.services import analysis_run_start
+from common.points import POINT_FIELDS
 from labs.models import Laboratory, Result
 from proficiency.models import Comparison, ComparisonStatus
 from tests.analysis.reports.conftest import pdf_text
@@ -108,8 +108,8 @@ def test_a_run_stores_the_offline_tools_consistency_records(demo, settings, tmp_
               for p in demo.measurement_points.select_related("device")}  # fmt: skip
     assert len(offline) == len(records) == 81
     for rec in offline:
-        pid = points[tuple(rec[k] for k in POINT_KEYS)]
-        close({k: v for k, v in rec.items() if k not in POINT_KEYS}, records[pid], str(pid))
+        pid = points[tuple(rec[k] for k in POINT_FIELDS)]
+        close({k: v for k, v in rec.items() if k not in POINT_FIELDS}, records[pid], str(pid))
 
 
 def test_chunks_store_the_same_records(demo, settings):
