@@ -45,6 +45,15 @@ class ScoreFilterForm(BootstrapMixin, forms.Form):
             (repr(f), format_number(f)) for f in freqs
         ]
         cast(forms.ChoiceField, self.fields["lab"]).choices = ALL + [(c, c) for c in lab_codes]
+        # only the levels the round has (one query for the three)
+        present = set(points.order_by().values_list("axis", "bench", "direction").distinct())
+        for i, (name, levels) in enumerate(
+            (("axis", Axis), ("bench", Bench), ("direction", Direction))
+        ):
+            values = {row[i] for row in present}
+            cast(forms.ChoiceField, self.fields[name]).choices = ALL + [
+                (value, label) for value, label in levels.choices if value in values
+            ]
 
     def filters(self) -> dict[str, str]:
         """The valid filters as ``run_scores`` takes them (an invalid form filters nothing)."""

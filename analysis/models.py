@@ -14,7 +14,7 @@ from django.db.models.signals import pre_delete
 from django.dispatch import receiver
 
 from labs.models import Participant, Result
-from proficiency.models import Comparison, MeasurementPoint
+from proficiency.models import AssignedValueMethod, Comparison, MeasurementPoint
 
 
 class AnalysisRun(models.Model):
@@ -129,6 +129,19 @@ class AnalysisChunk(models.Model):
         return f"chunk {self.index} of run {self.run_id}"
 
 
+# Stored method names (the core's) that differ from the comparison setting they come from
+_SETTING_OF = {"median_made": AssignedValueMethod.MEDIAN}
+
+
+def method_label(method: str) -> str:
+    """A stored method id in words, as the comparison's setting names it
+    (``weighted_mean`` → "Weighted mean (largest consistent subset if inconsistent)")."""
+    try:
+        return str(AssignedValueMethod(_SETTING_OF.get(method, method)).label)
+    except ValueError:
+        return method.replace("_", " ")
+
+
 class AssignedValue(models.Model):
     """x_pt and u(x_pt) of one measurement point in one run, and the consistency tests there
     (``analysis.consistency``): one row per point, written with the chunk's scores."""
@@ -160,6 +173,10 @@ class AssignedValue(models.Model):
 
     def __str__(self) -> str:
         return f"{self.measurement_point}: {self.value:g} (run {self.run_id})"
+
+    @property
+    def method_name(self) -> str:
+        return method_label(self.method)
 
     @property
     def expanded_uncertainty(self) -> float:

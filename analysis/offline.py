@@ -28,6 +28,7 @@ from analysis.pipeline import (
     score_columns,
     to_json,
 )
+from common.sizes import counted
 from labs.importers import write_table
 from labs.importers.values import escape_text
 
@@ -282,7 +283,8 @@ def approximate_points(analysis: Analysis) -> int:
 def approximate_warning(n: int) -> str:
     """What to say about ``n`` points whose subset is not the exact one."""
     return (
-        f"warning: {n} measurement point(s) have too many results for the exact largest "
+        f"warning: {counted(n, 'measurement point')} {'has' if n == 1 else 'have'} too many "
+        "results for the exact largest "
         "consistent subset; their subset is the sequential approximation and can be smaller "
         "than the largest (exhaustive: false)"
     )
@@ -309,7 +311,7 @@ def render_table(doc: dict[str, list[dict[str, Any]]]) -> str:
     ]))  # fmt: skip
     for m in doc["compatibility"]:
         parts += ["", f"COMPATIBILITY of {m['factor']} ({_group_label(m)}): "
-                  f"{m['incompatible_pairs']} incompatible pair(s)"]  # fmt: skip
+                  f"{counted(m['incompatible_pairs'], 'incompatible pair')}"]  # fmt: skip
         levels = [str(v) for v in m["levels"]]
         rows = [
             [lvl, m["value"][i], m["expanded_uncertainty"][i], *m["en"][i]]

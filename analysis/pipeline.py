@@ -25,6 +25,7 @@ from analysis.core.pooled import Moments
 from analysis.core.scores import FLAG_LABELS, Scores, compute_scores
 from analysis.core.types import AssignedValues
 from common.points import POINT_FIELDS, point_label
+from common.sizes import counted
 from labs.importers import ResultRow
 
 METHODS = (
@@ -349,7 +350,8 @@ def _reference(
     if missing.size:
         names = "; ".join(point_label(points[g], sep=" ") for g in missing[:10])
         raise CoreInputError(
-            f"the reference laboratory has no result for {missing.size} measurement point(s): "
+            f"the reference laboratory has no result for "
+            f"{counted(int(missing.size), 'measurement point')}: "
             f"{names}"
         )
     return av.reference_value(

@@ -1,4 +1,8 @@
-"""OpenAPI schema post-processing (drf-spectacular hook).
+"""The OpenAPI schema: operations grouped by tag, and the error responses (drf-spectacular).
+
+Operations that name no tag of their own are grouped by what their path does
+(:class:`AutoSchema`), so that Swagger UI shows the coordinator's operations under
+headings rather than under the version prefix.
 
 Every ``/api/v1/`` view answers errors through :func:`common.errors.api_exception_handler`
 with the same ``Error`` body (docs/interfaces.md §3), but most views only declare their success
@@ -9,6 +13,35 @@ schema matches what clients receive (checked by ``tests/security/test_schema_fuz
 from __future__ import annotations
 
 from typing import Any
+
+from drf_spectacular import openapi
+
+#: (path fragment, tag) for operations without a tag of their own: the first match counts
+PATH_TAGS = (
+    ("/report-notes", "reports"),
+    ("/reports", "reports"),
+    ("/analysis-runs", "analysis runs"),
+    ("/scores", "scores and compatibility"),
+    ("/compatibility", "scores and compatibility"),
+    ("/devices", "round set-up (coordinators)"),
+    ("/measurands/generate", "round set-up (coordinators)"),
+    ("/participants", "round set-up (coordinators)"),
+    ("/transition", "round life cycle (coordinators)"),
+    ("/publish", "round life cycle (coordinators)"),
+    ("/decision", "review (coordinators)"),
+    ("/check-requests", "review (coordinators)"),
+)
+
+
+class AutoSchema(openapi.AutoSchema):
+    """drf-spectacular's schema, tagging untagged operations by :data:`PATH_TAGS`."""
+
+    def get_tags(self) -> list[str]:
+        for fragment, tag in PATH_TAGS:
+            if fragment in self.path:
+                return [tag]
+        return super().get_tags()
+
 
 ERROR_REF = {"$ref": "#/components/schemas/Error"}
 #: status -> description, for every operation

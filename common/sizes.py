@@ -1,4 +1,4 @@
-"""Sizes in the words of an error message (no Django: the importers use it too)."""
+"""Sizes and counts in the words of a message (no Django: the pure cores use it too)."""
 
 
 def human_size(n_bytes: float) -> str:
@@ -7,3 +7,9 @@ def human_size(n_bytes: float) -> str:
         if n_bytes >= size:
             return f"{n_bytes / size:.1f}".removesuffix(".0") + f" {name}"
     return f"{int(n_bytes)} bytes"
+
+
+def counted(n: int, noun: str, plural: str | None = None) -> str:
+    """``1 measurement point``, ``3 measurement points``, ``2 laboratories`` (with
+    ``plural``): a count and its noun, never "point(s)"."""
+    return f"{n} {noun if n == 1 else plural or noun + 's'}"

@@ -47,6 +47,8 @@ COORDINATORS_GROUP = "coordinators"
 NOMINAL = 418.0
 REFERENCE_DATA = Path(settings.BASE_DIR) / "docs" / "reference-data"  # published tables
 
+#: The synthetic laboratory (lab03, submitting by the API) that also has a manager account
+MANAGED_LAB = 3
 # (lab name, country, username, benches measured)
 LINEAR_LAB = ("Linear Bench Calibration Laboratory", "IT", "linear-lab")
 CURVILINEAR_LAB = ("Curvilinear Bench Calibration Laboratory", "IT", "curvilinear-lab")
@@ -173,6 +175,12 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
         _submit(participant, reproduction_results(points, bench), Submission.Source.FILE)
     for i, (name, country) in enumerate(SYNTHETIC_LABS, start=3):
         participant = _lab(summary, comparison, name, country, f"lab{i:02d}", password)
+        if i == MANAGED_LAB:  # its manager creates the API keys its software submits with
+            manager = _user(summary, f"lab{i:02d}-manager", password)
+            Membership.objects.get_or_create(
+                user=manager, laboratory=participant.laboratory,
+                defaults={"role": Membership.Role.MANAGER},
+            )  # fmt: skip
         rows = synthetic_results(points, i, outlier=name == OUTLIER_LAB)
         _submit(participant, rows, Submission.Source.API if i % 2 else Submission.Source.WEB)
         if name == RAW_DATA_LAB:

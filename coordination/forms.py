@@ -11,6 +11,7 @@ from common.forms import BootstrapMixin
 from labs.models import Laboratory
 from proficiency import protocols
 from proficiency.models import (
+    CODE_INVALID,
     AssignedValueMethod,
     Axis,
     Bench,
@@ -45,6 +46,7 @@ class ComparisonForm(BootstrapMixin, forms.ModelForm):
                 attrs={"type": "datetime-local"}, format="%Y-%m-%dT%H:%M"
             ),
         }
+        error_messages = {"code": {"invalid": CODE_INVALID}}
         labels = {
             "sigma_pt_mode": "σ_pt mode",
             "sigma_pt_value": "σ_pt value",

@@ -22,6 +22,7 @@ from django.views.decorators.http import require_GET, require_http_methods, requ
 
 from analysis.reports.services import report_notes_update
 from common.errors import ApplicationError
+from common.sizes import counted
 from coordination.forms import (
     ComparisonCreateForm,
     ComparisonForm,
@@ -244,7 +245,9 @@ def points_generate(request: AuthenticatedHttpRequest, code: str) -> HttpRespons
         except ApplicationError as exc:
             form.add_error(None, exc.message)
         else:
-            messages.success(request, f"{len(created)} new measurement point(s) generated.")
+            messages.success(
+                request, f"{counted(len(created), 'new measurement point')} generated."
+            )
             return redirect("coordinator:comparison", code=code)
     context = {"form": form, "comparison": comparison, "n_devices": comparison.devices.count()}
     return render(request, "coordinator/points_form.html", context)
@@ -280,7 +283,9 @@ def participants_invite(request: AuthenticatedHttpRequest, code: str) -> HttpRes
             _add_errors(form, exc)
         else:
             codes = ", ".join(sorted(p.code for p in added))
-            messages.success(request, f"{len(added)} laboratory(ies) invited: {codes}.")
+            messages.success(
+                request, f"{counted(len(added), 'laboratory', 'laboratories')} invited: {codes}."
+            )
             return redirect("coordinator:comparison", code=code)
     return render(request, "coordinator/invite.html", {"form": form, "comparison": comparison})
 

@@ -11,6 +11,11 @@ from django.db.models import Q
 from common.points import PointKey, point_label
 from proficiency import protocols
 
+#: What a comparison code may contain, in the words of the error (form and API alike)
+CODE_INVALID = (
+    "A comparison code may contain only letters, digits, hyphens and underscores "
+    "(no spaces), for example IMU-2024-01."
+)
 FLOAT_MAX = sys.float_info.max  # "finite" in a CHECK constraint: NaN and ±inf both fail <= max
 
 

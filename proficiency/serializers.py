@@ -5,7 +5,7 @@ from __future__ import annotations
 from rest_framework import serializers
 
 from proficiency import protocols
-from proficiency.models import FLOAT_MAX, Comparison
+from proficiency.models import CODE_INVALID, FLOAT_MAX, Comparison
 
 
 def finite_positive(value: float | None) -> None:
@@ -29,4 +29,8 @@ class NewComparisonSerializer(serializers.ModelSerializer):
             "code", "title", "description", "template", "submission_deadline",
             "assigned_value_method", "sigma_pt_mode", "sigma_pt_value", "en_limit",
         ]  # fmt: skip
-        extra_kwargs = {"sigma_pt_value": POSITIVE, "en_limit": POSITIVE}
+        extra_kwargs = {
+            "sigma_pt_value": POSITIVE,
+            "en_limit": POSITIVE,
+            "code": {"error_messages": {"invalid": CODE_INVALID}},
+        }

@@ -2,15 +2,39 @@
 
 from __future__ import annotations
 
+from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
 from analysis.models import AnalysisRun, Score
 from labs.models import Submission
-from proficiency.models import Comparison
+from proficiency.models import AssignedValueMethod, Comparison, SigmaPtMode
+
+
+class RunParameters(serializers.Serializer):
+    """The settings a run computed with: the schema of ``parameters`` (the stored object is
+    returned as it is; a run stored before a key existed lacks it)."""
+
+    assigned_value_method = serializers.ChoiceField(
+        choices=AssignedValueMethod.choices, required=False
+    )
+    sigma_pt_mode = serializers.ChoiceField(choices=SigmaPtMode.choices, required=False)
+    sigma_pt_value = serializers.FloatField(allow_null=True, required=False)
+    en_limit = serializers.FloatField(required=False)
+    compare = serializers.ListField(
+        child=serializers.CharField(),
+        required=False,
+        help_text="factors of the stored compatibility matrices",
+    )
+
+
+@extend_schema_field(RunParameters)
+class _RunParameters(serializers.JSONField):
+    pass
 
 
 class AnalysisRunSerializer(serializers.ModelSerializer):
     comparison = serializers.CharField(source="comparison.code")
+    parameters = _RunParameters(read_only=True)
 
     class Meta:
         model = AnalysisRun

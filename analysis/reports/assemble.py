@@ -15,7 +15,7 @@ from django.conf import settings
 from django.contrib.auth.models import User
 
 import proficiency
-from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
+from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score, method_label
 from analysis.reports.consistency import consistency_summary
 from analysis.reports.data import (
     PARTICIPANT,
@@ -34,6 +34,7 @@ from analysis.reports.data import (
 from analysis.reports.rounds import round_stats, stats_of_rows
 from analysis.reports.sections import FULL_TABLE_ROWS
 from analysis.reports.stability import stability_rows
+from common.sizes import counted
 from labs.models import Participant
 from proficiency import protocols
 from proficiency.models import (
@@ -496,17 +497,6 @@ def _rows(
     return tuple(results), tuple(scores)
 
 
-# Stored method names (the core's) that differ from the comparison setting they come from
-_SETTING_OF = {"median_made": AssignedValueMethod.MEDIAN}
-
-
-def method_label(method: str) -> str:
-    try:
-        return str(AssignedValueMethod(_SETTING_OF.get(method, method)).label)
-    except ValueError:
-        return method.replace("_", " ")
-
-
 def _assigned(run: AnalysisRun, index: dict[int, int]) -> tuple[AssignedRow, ...]:
     rows = AssignedValue.objects.filter(run=run).values_list(
         "measurement_point_id", "value", "standard_uncertainty", "method", "sigma_pt",
@@ -596,10 +586,11 @@ def _stability(rows: tuple[StabilityRow, ...]) -> str:
     bad = sum(not r.stable for r in rows)
     return homogeneity + (
         f"Stability: the pilot measured the artefacts before and after circulation at "
-        f"{len(rows)} measurement point(s); {len(rows) - bad} are stable (|Δ| ≤ 0.3·σ_pt or "
-        f"En ≤ 1) and {bad} are not. The table below gives u_stab = |Δ|/√3 at each unstable "
-        "point; the scores of this round use u(x_pt) = u_char and do not include it, so a "
-        "score at an unstable point should be read with the drift in mind."
+        f"{counted(len(rows), 'measurement point')}; {len(rows) - bad} "
+        f"{'is' if len(rows) - bad == 1 else 'are'} stable (|Δ| ≤ 0.3·σ_pt or En ≤ 1) and "
+        f"{bad} {'is' if bad == 1 else 'are'} not. The table below gives u_stab = |Δ|/√3 at "
+        "each unstable point; the scores of this round use u(x_pt) = u_char and do not "
+        "include it, so a score at an unstable point should be read with the drift in mind."
     )
 
 

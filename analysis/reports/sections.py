@@ -21,6 +21,7 @@ from analysis.reports.data import (
 from analysis.reports.styles import GRID, HEAD_BACKGROUND, OWN_BACKGROUND
 from analysis.reports.styles import STYLES as S
 from analysis.reports.tables import FastTable, cell_styles
+from common.sizes import counted
 
 CONFIDENTIALITY = (
     "This report is confidential. Participants are identified by a code known only to "
@@ -277,8 +278,8 @@ def assigned_values(data: ReportData) -> list[Flowable]:
     approximate = [a for a in data.assigned if not a.exhaustive]
     if approximate:
         flow.append(para(
-            f"<b>Warning:</b> {len(approximate)} point(s) had too many results for the exact "
-            "largest-consistent-subset search; their subset is the sequential approximation, "
+            f"<b>Warning:</b> {counted(len(approximate), 'point')} had too many results for the "
+            "exact largest-consistent-subset search; their subset is the sequential approximation, "
             "which can be smaller than the largest consistent subset (marked “approximate”)."
         ))  # fmt: skip
     flow.append(table(rows, [18 * mm, 44 * mm, 20 * mm, 16 * mm, 20 * mm, 14 * mm, 42 * mm]))
@@ -485,7 +486,7 @@ def matrices(data: ReportData) -> list[Flowable]:
             rows.append(row)
         n = len(m.levels)
         widths = [22 * mm, 18 * mm, 14 * mm] + [min(18.0, 110.0 / max(n, 1)) * mm] * n
-        title = f"{m.factor} | {m.group} — {m.incompatible_pairs} incompatible pair(s)"
+        title = f"{m.factor} | {m.group} — {counted(m.incompatible_pairs, 'incompatible pair')}"
         flow.append(
             KeepTogether(
                 [para(escape(title), "small"), table(rows, widths, (), bad), Spacer(1, 3 * mm)]

@@ -212,7 +212,9 @@ class SubmissionRequestSerializer(serializers.Serializer):
 
 
 class UploadRequestSerializer(serializers.Serializer):
-    file = serializers.FileField(help_text="Results table, CSV or XLSX (docs/interfaces.md §1)")
+    file = serializers.FileField(
+        help_text="Results table (CSV or XLSX) with the results template's columns"
+    )
     submit = serializers.BooleanField(default=True)
 
 

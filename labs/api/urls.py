@@ -7,6 +7,7 @@ from labs.api import raw_views, views
 app_name = "api"
 
 urlpatterns = [
+    path("", views.ApiRoot.as_view(), name="root"),
     path("comparisons/", views.ComparisonList.as_view(), name="comparison-list"),
     path("comparisons/<slug:code>/", views.ComparisonDetail.as_view(), name="comparison-detail"),
     path(

@@ -13,15 +13,17 @@ import django_filters
 from django.conf import settings
 from django.contrib.auth.models import User
 from django.db.models import QuerySet
+from django.urls import reverse
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiParameter, OpenApiResponse, extend_schema
 from rest_framework import serializers, status
 from rest_framework.authentication import SessionAuthentication
 from rest_framework.exceptions import PermissionDenied
-from rest_framework.permissions import IsAuthenticated
+from rest_framework.permissions import AllowAny, IsAuthenticated
 from rest_framework.renderers import BaseRenderer, JSONRenderer
 from rest_framework.request import Request
 from rest_framework.response import Response
+from rest_framework.throttling import AnonRateThrottle
 from rest_framework.views import APIView
 
 from common.api import ValuesListView, valid_data
@@ -142,6 +144,24 @@ class ApiView(APIView):
 
     def access(self, code: str) -> ComparisonAccess:
         return comparison_access(caller_of(self.request), code)
+
+
+class ApiRoot(ApiView):
+    """``GET /api/v1/``: where the documentation and the schema are; open to everyone (no
+    data), throttled like every API view (anonymous callers by address)."""
+
+    permission_classes = [AllowAny]
+    throttle_classes = [*ApiView.throttle_classes, AnonRateThrottle]
+
+    @extend_schema(tags=["about"], responses={200: OpenApiTypes.OBJECT})
+    def get(self, request: Request) -> Response:
+        return Response(
+            {
+                "version": "v1",
+                "docs": request.build_absolute_uri(reverse("api-docs")),
+                "schema": request.build_absolute_uri(reverse("schema")),
+            }
+        )
 
 
 class ComparisonFilter(django_filters.FilterSet):

@@ -57,7 +57,7 @@ def check_header(names: Sequence[object], *, lab_column: LabColumn, row: int) ->
             RowError(
                 row,
                 None,
-                f"unknown column(s) {', '.join(map(repr, unknown))}"
+                f"unknown {_columns(unknown)} {', '.join(map(repr, unknown))}"
                 f"{hint}; the allowed columns are: {_ALLOWED}",
             )
         )
@@ -70,7 +70,8 @@ def check_header(names: Sequence[object], *, lab_column: LabColumn, row: int) ->
     required = REQUIRED_COLUMNS + (("lab",) if lab_column == "required" else ())
     missing = [c for c in required if c not in columns]
     if missing:
-        errors.append(RowError(row, None, f"missing required column(s): {', '.join(missing)}"))
+        names = ", ".join(missing)
+        errors.append(RowError(row, None, f"missing required {_columns(missing)}: {names}"))
     if errors:
         raise ImportErrors(errors)
     return columns
@@ -495,3 +496,7 @@ _COLUMN_ORDER = {name: index for index, name in enumerate(COLUMNS)}
 
 def _error_order(error: RowError) -> tuple[int, int]:
     return (error.row or 0, _COLUMN_ORDER.get(error.field or "", len(COLUMNS)))
+
+
+def _columns(names: Sequence[object]) -> str:
+    return "column" if len(names) == 1 else "columns"

@@ -214,7 +214,7 @@ def test_table_and_csv_output(tmp_path):
     call_command("pt_compare", str(src), "--compare", "bench", stdout=out)
     text = out.getvalue()
     assert "ASSIGNED VALUES" in text and "SCORES" in text
-    assert "COMPATIBILITY of bench (device=MEMS 1, axis=Y): 0 incompatible pair(s)" in text
+    assert "COMPATIBILITY of bench (device=MEMS 1, axis=Y): 0 incompatible pairs" in text
     target = tmp_path / "out.csv"
     call_command(
         "pt_compare", str(src), "--compare", "bench", "--format", "csv", "--output", str(target)

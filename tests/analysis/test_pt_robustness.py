@@ -66,6 +66,6 @@ def test_one_file_with_zones_is_one_repetition(tmp_path):
 
 def test_wrong_number_of_files_exits_2(tmp_path):
     files = triple(tmp_path, 0, -26)[:2]
-    with pytest.raises(CommandError, match="2 file\\(s\\) given: give BEFORE TEST AFTER") as err:
+    with pytest.raises(CommandError, match="2 files given: give BEFORE TEST AFTER") as err:
         call_command("pt_robustness", *files, "--excited-axis", "Y", stdout=StringIO())
     assert err.value.returncode == 2

@@ -134,7 +134,5 @@ def test_truncated_csv_exit_code_2_in_a_real_process(tmp_path):
         timeout=120,
     )
     assert proc.returncode == 2
-    assert (
-        "cut.csv line 3: 2 field(s), expected 3 (x, y, z) (the last line: truncated" in proc.stderr
-    )
+    assert "cut.csv line 3: 2 fields, expected 3 (x, y, z) (the last line: truncated" in proc.stderr
     assert proc.stdout == ""

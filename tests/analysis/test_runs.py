@@ -176,4 +176,4 @@ def test_reference_method_uses_the_pilot(demo):
     run = analysis_run_start(comparison=demo, user=None)
     run.refresh_from_db()
     assert run.status == "failed"
-    assert "no result for 54 measurement point(s)" in run.error
+    assert "no result for 54 measurement points" in run.error

@@ -16,6 +16,7 @@ from analysis.models import AssignedValue, Score
 from analysis.reports.assemble import report_data
 from analysis.reports.render import render_report
 from analysis.services import analysis_run_start
+from common.sizes import counted
 from labs.models import Participant, Result
 from proficiency.models import Comparison
 from tests.analysis.reports.conftest import pdf_text
@@ -179,7 +180,7 @@ def test_points_beyond_the_exact_budget_are_flagged_on_page_csv_json_and_report(
     assert 'id="approximate-subsets"' in html and ">approximate</span>" in html
 
     text = " ".join(pdf_text(render_report(report_data(run=run)))).replace("\n", " ")
-    assert f"{n} point(s) had too many results for the exact" in text
+    assert f"{counted(n, 'point')} had too many results for the exact" in text
 
     export = tmp_path / "demo.csv"
     call_command("export_results", demo.code, "--output", str(export), stderr=StringIO())
@@ -187,11 +188,12 @@ def test_points_beyond_the_exact_budget_are_flagged_on_page_csv_json_and_report(
     call_command("pt_compare", str(export), "--format", "json", stdout=out, stderr=err)
     doc = json.loads(out.getvalue())
     assert sum(a.get("exhaustive") is False for a in doc["assigned_values"]) == n
-    assert f"warning: {n} measurement point(s) have too many results" in err.getvalue()
+    have = "has" if n == 1 else "have"
+    assert f"warning: {counted(n, 'measurement point')} {have} too many results" in err.getvalue()
     out = StringIO()
     call_command("pt_compare", str(export), "--format", "csv", stdout=out, stderr=StringIO())
     rows = list(csv.DictReader(StringIO(out.getvalue().split("\n\n")[0])))
     assert {r["exhaustive"] for r in rows} == {"FALSE", "TRUE"}
     out = StringIO()
     call_command("pt_compare", str(export), stdout=out, stderr=StringIO())
-    assert f"Warning: {n} measurement point(s)" in out.getvalue()
+    assert f"Warning: {counted(n, 'measurement point')} {have} too many" in out.getvalue()

@@ -258,7 +258,7 @@ def test_table_rules_give_the_upload_messages(round_):
     ("data", "message"),
     [
         (b"device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\n",
-         "row 1: missing required column(s): lab"),
+         "row 1: missing required column: lab"),
         (b"lab,device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\n",
          "the table has no data rows"),
         (b"", "the table is empty; the first row must be the header: lab, device, axis, "

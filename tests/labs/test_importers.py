@@ -164,14 +164,14 @@ def test_empty_lines_are_skipped_and_rows_keep_their_spreadsheet_number() -> Non
 def test_unknown_columns_are_rejected_with_the_allowed_list() -> None:
     [(row, field, message)] = errors(table(row_with(colour="red", Remarks="x")))
     assert (row, field) == (1, None)
-    assert message.startswith("unknown column(s) 'colour', 'remarks'; the allowed columns are: ")
+    assert message.startswith("unknown columns 'colour', 'remarks'; the allowed columns are: ")
     assert "expanded_uncertainty" in message
 
 
 def test_missing_required_columns_give_one_error() -> None:
     data = b"device,axis,bench\nMEMS 1,X,linear\n"
     assert errors(data) == [
-        (1, None, "missing required column(s): frequency_hz, sensitivity, expanded_uncertainty"),
+        (1, None, "missing required columns: frequency_hz, sensitivity, expanded_uncertainty"),
     ]
 
 
@@ -302,7 +302,7 @@ def test_lab_column_forbidden() -> None:
 
 def test_lab_column_required() -> None:
     assert errors(table(BASE), lab_column="required") == [
-        (1, None, "missing required column(s): lab"),
+        (1, None, "missing required column: lab"),
     ]
     data = table(row_with(lab="L01"), row_with(lab=" "))
     assert errors(data, lab_column="required") == [(3, "lab", "is required")]

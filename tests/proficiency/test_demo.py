@@ -42,12 +42,12 @@ def test_load_demo_twice_gives_the_same_rows():
         "Device": 3,
         "MeasurementPoint": 81,
         "Laboratory": 12,
-        "Membership": 12,
+        "Membership": 13,
         "Participant": 12,
         "Submission": 12,
         # 2 bench labs (27 + 54 points) and 10 labs measuring all 81 points
         "Result": 27 + 54 + 10 * 81,
-        "User": 14,
+        "User": 15,
     }
     assert "coordinator" in out.getvalue() and "demo-password-1" in out.getvalue()
     out2 = StringIO()
@@ -69,6 +69,10 @@ def test_demo_accounts_and_roles():
     assert sorted(coordinator.get_all_permissions()) == ["proficiency.add_comparison"]
     assert Comparison.objects.get(code=DEMO_CODE).coordinators.filter(pk=coordinator.pk).exists()
     assert Membership.objects.filter(user__username="lab07").get().laboratory.name
+    staff = Membership.objects.get(user__username="lab03")
+    manager = Membership.objects.get(user__username="lab03-manager")
+    assert (staff.role, manager.role) == ("staff", "manager")
+    assert manager.laboratory == staff.laboratory
 
 
 def aggregate(values, u):

@@ -59,6 +59,11 @@ TABLE: dict[str, Row] = {
         get="200|503 200|503 200|503 200|503 200|503 200|503 200|503 200|503 200|503",
         post="405 405 405 405 405 405 405 405 405",
     ),
+    # the API's root: where its documentation is, for everyone (a revoked key is refused)
+    "api/v1/": Row(
+        get="200 200 200 200 200 200 200 401 200",
+        post="405 405 405 405 405 405 405 401 405",
+    ),
     # landing page for everyone, a lab member's dashboard
     "": Row(
         get="200 200 200 200 200 200 200 200 200",

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from analysis.core.groups import CoreInputError, FloatArray
+from common.sizes import counted
 
 CHANNELS = ("x", "y", "z", "ref", "encoder_rad")
 MEMS_AXES = ("x", "y", "z")
@@ -212,7 +213,7 @@ def _check_field_counts(
         i = int(bad[0])
         last = " (the last line: truncated file?)" if i == fields.size - 1 else ""
         raise SignalInputError(
-            f"{name} line {i + 2}: {int(fields[i])} field(s), expected {n_cols} "
+            f"{name} line {i + 2}: {counted(int(fields[i]), 'field')}, expected {n_cols} "
             f"({', '.join(columns)}){last}"
         )
 

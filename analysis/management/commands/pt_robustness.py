@@ -18,6 +18,7 @@ from analysis.core.groups import CoreInputError
 from analysis.core.signals.records import MEMS_AXES, Record, SignalInputError, load_record
 from analysis.core.signals.robustness import ZONES, Repetition, repetition, summary, zone_slices
 from analysis.offline import _table, write_output
+from common.sizes import counted
 
 
 class Command(BaseCommand):
@@ -59,7 +60,7 @@ def _repetitions(records: list[Record]) -> list[list[Record]]:
         return [[r] for r in records]
     if len(records) % 3:
         raise SignalInputError(
-            f"{len(records)} file(s) given: give BEFORE TEST AFTER for each repetition "
+            f"{counted(len(records), 'file')} given: give BEFORE TEST AFTER for each repetition "
             "(a multiple of 3), or files whose metadata has 'zones'"
         )
     return [records[i : i + 3] for i in range(0, len(records), 3)]

@@ -44,7 +44,7 @@ def test_stability_table_matches_hand_calculation(analysed):
     assert b.en == pytest.approx(2.0 / (2 * math.sqrt(0.02)))
     assert not b.stable and b.u_stab == pytest.approx(2.0 / math.sqrt(3))
     text = " ".join("\n".join(pdf_text(render_report(data))).split())
-    assert "2 measurement point(s); 1 are stable" in text
+    assert "2 measurement points; 1 is stable (" in text and "En ≤ 1) and 1 is not." in text
     assert f"+2 {b.en:.2f} {0.3 * sigma:.3g} no {2 / math.sqrt(3):.3g}" in text
     # the scores use u(x_pt) = u_char (docs/domain.md §5.8): the report must not claim
     # that the drift entered them

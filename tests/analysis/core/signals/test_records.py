@@ -29,9 +29,9 @@ def test_csv_without_time_column_semicolons_and_bom():
     [
         (
             b"x,y\n1,2\n3,4\n5",
-            "b.csv line 4: 1 field(s), expected 2 (x, y) (the last line: truncated",
+            "b.csv line 4: 1 field, expected 2 (x, y) (the last line: truncated",
         ),
-        (b"x,y\n1,2\n3,4,5\n6,7\n", "b.csv line 3: 3 field(s), expected 2"),
+        (b"x,y\n1,2\n3,4,5\n6,7\n", "b.csv line 3: 3 fields, expected 2"),
         (b"x,y\n1,2\n3,abc\n", "b.csv line 3, channel y: not a number: 'abc'"),
         (b"x,y\n1,2\n3,\n", "b.csv line 3, channel y: not a number: ''"),
         (b"x,y\n1,2\n3,4\nnan,5\n", "b.csv line 4, channel x: non-finite sample nan"),
