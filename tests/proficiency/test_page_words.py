@@ -124,7 +124,8 @@ def test_score_filters_offer_only_the_rounds_levels():
     form = ScoreFilterForm({}, comparison=comparison, lab_codes=[])
 
     def offered(name: str) -> list[str]:
-        return [v for v, _ in cast(forms.ChoiceField, form.fields[name]).choices]
+        choices = cast(list[tuple[str, str]], cast(forms.ChoiceField, form.fields[name]).choices)
+        return [v for v, _ in choices]
 
     assert (offered("bench"), offered("axis"), offered("direction")) == (
         ["", "linear"], ["", "Z"], ["", "vertical"],
