@@ -138,12 +138,7 @@ def entered_u(result: Any) -> str:
     entered = getattr(result, "expanded_uncertainty_entered", "")
     if not entered:
         return absolute
-    return f"{percent_text(entered)} ({absolute} {result.unit})"
-
-
-def percent_text(entered: str) -> str:
-    """``1.2%`` as ``1.2 %`` (SI: a space before the per-cent sign)."""
-    return entered.removesuffix("%").strip() + " %" if entered.endswith("%") else entered
+    return f"{entered} ({absolute} {result.unit})"
 
 
 def _path(item: Any, path: str) -> Any:

@@ -107,6 +107,12 @@ def test_scores_page_writes_value_u_d_en_zeta_z_as_the_pdf(client, run):
     assert row[7:13] == ["3.416", "0.012", "+0.00001235", "0.12", "-1.23", "2.00 / 2.00"]
     unit = point.device.unit
     assert f"Value{heading(unit)}</th>" in page and f"D{heading(unit)}</th>" in page
+    # the download keeps full precision (docs/architecture.md §4)
+    download = client.get(
+        C + "scores.csv", {"lab": score.result.submission.participant.code}
+    ).content.decode()
+    assert "3.4160160000000004" in download and ",0.0123," in download
+    assert ",-1.23456789," in download and f",{0.0000123456!r}," in download
 
 
 def test_results_page_writes_assigned_values_by_their_u(client, run):
