@@ -329,6 +329,7 @@ class _Import:
                     r.note,
                     r.repeat_sd,
                     r.n_repeats,
+                    r.expanded_uncertainty_entered,
                 )
                 for r, p, i in zip(rows, parts, points, strict=True)
             ]

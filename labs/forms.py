@@ -100,7 +100,10 @@ class ResultGridForm(forms.Form):
             if result is None:
                 continue
             initial[self.key(i, "sensitivity")] = _number(result.value)
-            initial[self.key(i, "expanded_uncertainty")] = _number(result.expanded_uncertainty)
+            # a relative U as the lab wrote it (docs/domain.md §3.1), else the absolute number
+            initial[self.key(i, "expanded_uncertainty")] = (
+                result.expanded_uncertainty_entered or _number(result.expanded_uncertainty)
+            )
             initial[self.key(i, "coverage_factor")] = _number(result.coverage_factor)
             initial[self.key(i, "dof")] = _number(result.dof)
             initial[self.key(i, "repeat_sd")] = _number(result.repeat_sd)

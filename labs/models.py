@@ -11,6 +11,7 @@ from django.db.models.functions import NullIf
 from rest_framework_api_key.models import AbstractAPIKey, APIKeyManager
 
 from common.rows import JoinedQuery, ModelColumns
+from labs.importers.schema import ENTERED_MAX_CHARS
 from proficiency.models import Comparison, MeasurementPoint, finite_positive
 
 
@@ -184,6 +185,11 @@ class Result(models.Model):
         null=True, blank=True, help_text="Number of repeats behind repeat_sd (>= 2)"
     )
     note = models.CharField(max_length=500, blank=True)
+    expanded_uncertainty_entered = models.CharField(
+        max_length=ENTERED_MAX_CHARS, blank=True, default="", db_default="",
+        help_text="U as the laboratory wrote it when it gave it relative (\"1.2 %\"); blank when "
+        "it gave the absolute number. expanded_uncertainty holds the absolute value either way",
+    )  # fmt: skip
 
     class Meta:
         ordering = ["submission", "measurement_point"]

@@ -97,6 +97,8 @@ def test_import_contracts_hold():
         # the point key the pure cores share stays pure
         ("common/points.py", "\nimport django.conf\n", "pure-ground"),
         ("common/sizes.py", "\nfrom common import jobs\n", "pure-ground"),
+        ("common/numbers.py", "\nimport django.utils.formats\n", "pure-ground"),
+        ("common/numbers.py", "\nfrom labs import models\n", "pure-ground"),
         ("labs/importers/_probe.py", "from analysis.core import robust\n", "pure-independent"),
         # appended to a service or selector: an edge imported from below
         ("labs/services.py", "\nimport labs.views\n", "services-below-edges"),

@@ -40,6 +40,7 @@ from .validate import (
     cells_to_record,
     find_duplicates,
     magnitude_problems,
+    relative_to_absolute,
     repeat_problems,
 )
 from .values import (
@@ -317,9 +318,10 @@ def _assemble(
         if bad:
             continue
         device, axis, freq, bench, direction, amp, sens, unit, u, k, dof, lab, note, sd, n = cells
-        expanded = u
-        if type(u) is tuple:  # from the precise check: (value, given in %)
-            expanded = sens * u[0] / 100 if u[1] else u[0]
+        expanded, entered = u, ""
+        if type(u) is tuple:  # from the precise check: (value, given in %, text if in %)
+            expanded = relative_to_absolute(sens, u[0]) if u[1] else u[0]
+            entered = u[2]
         original_unit, given = None, sens
         if unit == MG_PER_LSB:
             # The relative uncertainty is kept through the inversion (docs/domain.md §2).
@@ -336,7 +338,7 @@ def _assemble(
             v.note(number, magnitude_problems(sens, expanded, k, original_unit) + paired)
             continue
         row = _result_row(number, device, axis, freq, bench, direction, amp, sens, unit,
-                          expanded, k, dof, lab, note, original_unit, sd, n)  # fmt: skip
+                          expanded, k, dof, lab, note, original_unit, sd, n, entered)  # fmt: skip
         if check_points and len(context.matching_points(row)) != 1:  # type: ignore[union-attr]
             check = _RowCheck({}, number, v.decimal_comma)
             _check_point(check, row, context)

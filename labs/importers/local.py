@@ -32,6 +32,8 @@ from typing import BinaryIO
 
 import numpy as np
 
+from common.numbers import percent_fraction
+
 from .columns import Compute, _Validator, field_checks
 from .errors import MAX_LISTED_ERRORS, ImportErrors, RowError
 from .readers import sniff_delimiter
@@ -307,7 +309,8 @@ class _Plain:
         expanded = self._number("expanded_uncertainty")
         if "expanded_uncertainty" in self.numbers:
             relative = np.concatenate(self.relative)
-            expanded = np.where(relative, sensitivity * expanded / 100, expanded)
+            fraction = np.array([percent_fraction(p) for p in expanded[relative].tolist()])
+            expanded[relative] = sensitivity[relative] * fraction  # as relative_to_absolute
         repeat_sd, n_repeats = self._repeats()
         mg = np.array([u == MG_PER_LSB for u in point["unit"]], bool)[at]
         if mg.any():  # as an upload: the relative uncertainty is kept through the inversion

@@ -48,6 +48,8 @@ DIRECTIONS_BY_BENCH: Mapping[str, tuple[str, ...]] = {
     "curvilinear": ("tangential", "radial"),
 }
 NOTE_MAX_CHARS = 500
+#: The longest relative U kept as written (``1.2%``, docs/domain.md §3.1).
+ENTERED_MAX_CHARS = 40
 #: The most repeats ``n_repeats`` may count (a whole number, stored as a 32-bit integer).
 MAX_REPEATS = 1_000_000_000
 DEFAULT_COVERAGE_FACTOR = 2.0
@@ -61,6 +63,8 @@ class ResultRow:
     ``original_unit`` is the unit the lab wrote when it was converted (``mg/LSB``).
     ``repeat_sd`` and ``n_repeats`` (both or neither) are the within-laboratory standard
     deviation of the repeats behind ``sensitivity`` (their mean) and their number.
+    ``expanded_uncertainty_entered`` is U as the lab wrote it when it gave it in per cent
+    (``1.2%``), blank when it gave the absolute number (docs/domain.md §3.1).
     """
 
     row: int
@@ -80,6 +84,7 @@ class ResultRow:
     original_unit: str | None = None
     repeat_sd: float | None = None
     n_repeats: int | None = None
+    expanded_uncertainty_entered: str = ""
 
     @property
     def standard_uncertainty(self) -> float:

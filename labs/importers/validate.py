@@ -7,6 +7,8 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TypeVar
 
+from common.numbers import percent_fraction
+
 from .errors import ImportErrors, RowError
 from .schema import (
     AXES,
@@ -14,6 +16,7 @@ from .schema import (
     COLUMNS,
     DEFAULT_COVERAGE_FACTOR,
     DIRECTIONS,
+    ENTERED_MAX_CHARS,
     MAX_REPEATS,
     NOTE_MAX_CHARS,
     REQUIRED_COLUMNS,
@@ -227,11 +230,13 @@ def _direction(check: _RowCheck, bench: str | None, context: TableContext | None
     return check.choice("direction", allowed, universe, f"on the {bench} bench")
 
 
-def _uncertainty(check: _RowCheck) -> tuple[float, bool] | None:
-    """Expanded uncertainty and whether it was given in % of the sensitivity."""
+def _uncertainty(check: _RowCheck) -> tuple[float, bool, str] | None:
+    """Expanded uncertainty, whether it was given in % of the sensitivity, and then the text
+    as written, kept with the result (docs/domain.md §3.1): its number as typed and one space
+    before the per-cent sign, as SI writes it (``1.2%`` and ``1.2 %`` are ``1.2 %``)."""
     raw = check.raw("expanded_uncertainty")
     if isinstance(raw, str) and raw.strip().endswith("%"):
-        shown = raw.strip()
+        shown = " ".join(raw.split())
         try:
             value = parse_number(shown[:-1], decimal_comma=check.decimal_comma)
         except ValueProblem:
@@ -240,9 +245,23 @@ def _uncertainty(check: _RowCheck) -> tuple[float, bool] | None:
         if not value > 0:
             check.fail("expanded_uncertainty", f"must be > 0, got {shown}")
             return None
-        return value, True
+        entered = shown[:-1].strip() + " %"
+        if len(entered) > ENTERED_MAX_CHARS:
+            check.fail(
+                "expanded_uncertainty",
+                f"a percentage is kept as written: at most {ENTERED_MAX_CHARS} characters, got "
+                f"{len(entered)}",
+            )
+            return None
+        return value, True, entered
     absolute = check.number("expanded_uncertainty", required=True)
-    return None if absolute is None else (absolute, False)
+    return None if absolute is None else (absolute, False, "")
+
+
+def relative_to_absolute(sensitivity: float, percent: float) -> float:
+    """U of a relative U of ``percent`` % (docs/domain.md §3.1): sensitivity × (p/100), the
+    fraction taken from the percentage's decimal text (1.2 % of s is exactly s × 0.012)."""
+    return sensitivity * percent_fraction(percent)
 
 
 def _unit(check: _RowCheck, device: str | None, context: TableContext | None) -> str | None:
@@ -413,8 +432,8 @@ def validate_record(
         return check.errors
     assert device and axis and frequency and bench and direction and sensitivity and unit
     assert uncertainty is not None and note is not None
-    value, relative = uncertainty
-    expanded = sensitivity * value / 100 if relative else value
+    value, relative, entered = uncertainty
+    expanded = relative_to_absolute(sensitivity, value) if relative else value
     original_unit, given_sensitivity = None, sensitivity
     if unit == MG_PER_LSB:
         # The relative uncertainty is kept through the inversion (docs/domain.md §2).
@@ -434,7 +453,7 @@ def validate_record(
         expanded_uncertainty=expanded,
         coverage_factor=k,
         dof=dof, lab=lab, note=note, original_unit=original_unit,
-        repeat_sd=sd, n_repeats=n_repeats,
+        repeat_sd=sd, n_repeats=n_repeats, expanded_uncertainty_entered=entered,
     )  # fmt: skip
     _check_point(check, result, context)
     return check.errors or result

@@ -1,9 +1,11 @@
-"""Small display helpers of the laboratory pages: status badges and local times."""
+"""Small display helpers of the pages: status badges, local times and numbers as a
+metrologist writes them (the one rule of ``common.numbers``, docs/domain.md §3.1)."""
 
 from __future__ import annotations
 
 import datetime as dt
 from collections.abc import Iterable
+from typing import Any
 
 from django import template
 from django.contrib.auth.models import AnonymousUser, User
@@ -11,6 +13,7 @@ from django.db.models import QuerySet
 from django.utils import timezone
 from django.utils.html import format_html
 
+from common import numbers
 from common.points import format_number, point_label
 from labs.access import managed_labs
 from labs.models import Laboratory, Submission
@@ -91,3 +94,71 @@ def nums(values: Iterable[float]) -> str:
 def amplitude_rows(plan: BenchPlan) -> list[tuple[str, str, float]]:
     """A bench plan's expected excitation as (frequency, direction, amplitude) rows."""
     return [(format_number(f), d, a) for (f, d), a in sorted(plan.amplitudes.items())]
+
+
+# --- numbers a person reads (docs/domain.md §3.1); downloads and the API never round ------
+
+
+@register.filter
+def round_to(value: float | None, uncertainty: float | None) -> str:
+    """The value rounded to the place of its uncertainty's second significant digit
+    (``{{ r.value|round_to:r.expanded_uncertainty }}``: ``419.47``)."""
+    return numbers.round_to_uncertainty(value, uncertainty)
+
+
+@register.filter
+def unc(value: float | None) -> str:
+    """An uncertainty to two significant digits (``12.751038232238182`` → ``13``)."""
+    return numbers.uncertainty(value)
+
+
+@register.filter
+def plain(value: float | None) -> str:
+    """A number shown alone, without binary noise (``3.4160160000000004`` → ``3.416016``)."""
+    return numbers.plain(value)
+
+
+@register.filter
+def fixed(value: float | None, places: int = 2) -> str:
+    """A score with ``places`` decimals, as the PDF writes En, ζ and z (``0.12``)."""
+    return numbers.fixed(value, int(places))
+
+
+@register.filter
+def signed(value: float | None, digits: int = 4) -> str:
+    """D with its sign to ``digits`` significant digits, as the PDF (``+0.01235``)."""
+    return numbers.significant(value, int(digits), sign=True)
+
+
+@register.filter
+def entered_u(result: Any) -> str:
+    """A result's U as the laboratory wrote it: ``1.2 % (5.0 mV/(m/s²))`` for a relative U
+    (the absolute value in brackets, rounded), else the absolute U rounded."""
+    absolute = numbers.uncertainty(result.expanded_uncertainty)
+    entered = getattr(result, "expanded_uncertainty_entered", "")
+    if not entered:
+        return absolute
+    return f"{entered} ({absolute} {result.unit})"
+
+
+def _path(item: Any, path: str) -> Any:
+    for name in path.split("."):
+        item = item.get(name) if isinstance(item, dict) else getattr(item, name, None)
+    return item
+
+
+@register.simple_tag
+def unit_of(items: Iterable[Any], path: str = "unit") -> str:
+    """The one unit of a table's rows (``path`` to it on each row, dotted), for the column
+    headings; ``""`` when the rows mix units (each cell then shows its own) or are none."""
+    units = {_path(item, path) for item in items}
+    return units.pop() if len(units) == 1 and None not in units else ""
+
+
+@register.simple_tag
+def unit_heading(unit: str) -> str:
+    """`` (mV/(m/s²))`` after a column heading, or `` (unit in each row)`` for a table of
+    several units."""
+    if unit:
+        return format_html(' <span class="fw-normal text-nowrap">({})</span>', unit)
+    return format_html(' <span class="fw-normal small">{}</span>', "(unit in each row)")

@@ -12,6 +12,7 @@ from django.core.management import call_command
 
 from analysis.models import AnalysisRun, Score
 from analysis.services import analysis_run_start
+from common.numbers import value_with_uncertainty
 from labs.models import Laboratory, Participant
 from proficiency.models import Comparison
 
@@ -86,8 +87,9 @@ def test_results_page_assigned_values_and_bench_table(client, run):
     assert "Assigned values" in page and "Nominal value with tolerance" in page
     assert "Linear vs curvilinear bench" in page and "all participants" in page
     assert "Publish results" in page
-    value = run.assigned_values.first().value
-    assert f"{value:.3f}" in page
+    a = run.assigned_values.first()
+    x_text, u_text = value_with_uncertainty(a.value, a.expanded_uncertainty)
+    assert f'<td class="num">{x_text}' in page and f'<td class="num">{u_text}' in page
 
 
 def test_scores_table_filters_and_flags(client, run):

@@ -29,6 +29,7 @@ from tests.factories import (
 pytestmark = pytest.mark.django_db
 
 A_VALUE = 423.456789  # Alpha's distinctive result, never shown to Bravo
+A_U = 0.00012  # small enough that the pages write A_VALUE as 423.45679 (docs/domain.md §3.1)
 A_NAME = "Lab Alpha Metrology"
 
 
@@ -66,7 +67,9 @@ def submitted(participant: Participant, value: float = A_VALUE) -> Submission:
         participant=participant, status="submitted", submitted_at=timezone.now()
     )
     for point in participant.comparison.measurement_points.all():
-        ResultFactory.create(submission=submission, measurement_point=point, value=value)
+        ResultFactory.create(
+            submission=submission, measurement_point=point, value=value, expanded_uncertainty=A_U
+        )
     return submission
 
 
@@ -213,7 +216,7 @@ def test_history_and_version_detail(client, world):
     body = visible(client.get(reverse("labs:history", args=["CMP-A"])))
     assert "Version 2" in body and "Version 1" in body and "File upload" in body
     detail = visible(client.get(reverse("labs:submission", args=["CMP-A", 1])))
-    assert "423.456789" in detail and "cannot be changed" in detail
+    assert "423.45679" in detail and "cannot be changed" in detail
     assert "<input" not in detail.split("<main")[1]  # read-only
     assert client.get(reverse("labs:submission", args=["CMP-A", 9])).status_code == 404
 

@@ -1,0 +1,131 @@
+"""Pages write numbers as a metrologist does (docs/domain.md §3.1): a value to the decimal
+place of its uncertainty's second significant digit, scores as the PDF, the unit on the
+column headings; float noise planted in the database never reaches the page."""
+
+import re
+from io import StringIO
+
+import pytest
+from django.contrib.auth import get_user_model
+from django.core.management import call_command
+from django.urls import reverse
+
+from analysis.models import AnalysisRun, AssignedValue, Score
+from analysis.services import analysis_run_start
+from labs.models import Result, Submission
+from proficiency.models import Comparison
+
+CODE = "IMU-2024-DEMO"
+C = f"/coordinator/{CODE}/"
+NOISE = re.compile(r"\d\.\d{10,}")  # ten decimals or more: float noise, not a measurement
+
+
+@pytest.fixture
+def demo(db):
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    return Comparison.objects.get(code=CODE)
+
+
+@pytest.fixture
+def run(demo, django_capture_on_commit_callbacks) -> AnalysisRun:
+    with django_capture_on_commit_callbacks(execute=True):
+        started = analysis_run_start(comparison=demo, user=None)
+    started.refresh_from_db()
+    assert started.status == "succeeded", started.error
+    return started
+
+
+def login(client, name):
+    client.force_login(get_user_model().objects.get(username=name))
+
+
+def heading(unit: str) -> str:
+    return f' <span class="fw-normal text-nowrap">({unit})</span>'
+
+
+def cells(page: str) -> list[str]:
+    """The text of every table cell, tags stripped."""
+    return [re.sub(r"<[^>]+>", "", c).strip() for c in re.findall(r"<td[^>]*>(.*?)</td>", page)]
+
+
+def plant(result: Result, value: float, big_u: float) -> Result:
+    Result.objects.filter(pk=result.pk).update(value=value, expanded_uncertainty=big_u)
+    result.refresh_from_db()
+    return result
+
+
+def test_review_page_rounds_value_and_u_and_heads_columns_with_the_unit(client, demo):
+    participant = demo.participants.get(laboratory__name__startswith="Alpine")
+    submission = participant.submissions.get()
+    Submission.objects.filter(pk=submission.pk).update(status="submitted")
+    result = plant(submission.results.order_by("pk").first(), 3.4160160000000004, 0.0123)
+    login(client, "coordinator")
+    response = client.get(f"{C}review/{participant.code}/v{submission.version}/")
+    assert response.status_code == 200
+    page = response.content.decode()
+    assert "3.4160160000000004" not in page and not NOISE.search(page)
+    assert "3.416" in cells(page) and "0.012 (2)" in cells(page)
+    assert f"Value{heading(result.unit)}</th>" in page
+    assert f"U (k){heading(result.unit)}</th>" in page
+    assert f"Others' median{heading(result.unit)}</th>" in page
+
+
+def test_lab_version_page_rounds_u_and_puts_the_unit_in_the_headings(client, demo):
+    participant = demo.participants.get(laboratory__name__startswith="Alpine")
+    submission = participant.submissions.get()
+    result = plant(submission.results.order_by("pk").first(), 637.5519116119091, 12.751038232238182)
+    client.force_login(participant.laboratory.members.first().user)
+    response = client.get(reverse("labs:submission", args=[CODE, submission.version]))
+    assert response.status_code == 200
+    page = response.content.decode()
+    assert "12.751038232238182" not in page and not NOISE.search(page)
+    rows = re.findall(r"<tr>.*?</tr>", page, re.S)
+    row = next(r for r in rows if str(result.measurement_point) in r)
+    assert cells(row)[:2] == ["638", "13"]
+    assert f"Sensitivity{heading(result.unit)}</th>" in page
+    assert f"U{heading(result.unit)}</th>" in page
+
+
+def test_scores_page_writes_value_u_d_en_zeta_z_as_the_pdf(client, run):
+    score = Score.objects.filter(run=run).select_related("result__submission__participant").first()
+    assert score is not None
+    plant(score.result, 3.4160160000000004, 0.0123)
+    Score.objects.filter(pk=score.pk).update(
+        d=0.0000123456, en=0.125, zeta=-1.23456789, z=2.0000000000000004, z_prime=1.999
+    )
+    point = score.result.measurement_point
+    login(client, "coordinator")
+    page = client.get(
+        C + "scores/",
+        {"lab": score.result.submission.participant.code, "device": point.device.name},
+    ).content.decode()
+    assert not NOISE.search(page)
+    row = next(
+        cells(r) for r in re.findall(r"<tr[^>]*>.*?</tr>", page, re.S) if "3.416" in cells(r)
+    )
+    # value, U, D (+.4g), En (.2f, ties to even as format()), ζ, z / z′
+    assert row[7:13] == ["3.416", "0.012", "+0.00001235", "0.12", "-1.23", "2.00 / 2.00"]
+    unit = point.device.unit
+    assert f"Value{heading(unit)}</th>" in page and f"D{heading(unit)}</th>" in page
+    # the download keeps full precision (docs/architecture.md §4)
+    download = client.get(
+        C + "scores.csv", {"lab": score.result.submission.participant.code}
+    ).content.decode()
+    assert "3.4160160000000004" in download and ",0.0123," in download
+    assert ",-1.23456789," in download and f",{0.0000123456!r}," in download
+
+
+def test_results_page_writes_assigned_values_by_their_u(client, run):
+    a = AssignedValue.objects.filter(run=run).order_by("pk").first()
+    assert a is not None
+    AssignedValue.objects.filter(pk=a.pk).update(
+        value=419.4712000000001, standard_uncertainty=0.06745, coverage_factor=2.0
+    )  # U(x_pt) = 0.1349
+    login(client, "coordinator")
+    page = client.get(C + "results/").content.decode()
+    assert "419.4712000000001" not in page and not NOISE.search(page)
+    assert next(
+        cells(r)[6:9] for r in re.findall(r"<tr>.*?</tr>", page, re.S) if "419.47" in r
+    ) == ["419.47", "0.067", "0.13"]
+    unit = a.measurement_point.device.unit
+    assert f"x_pt{heading(unit)}</th>" in page and f"U(x_pt){heading(unit)}</th>" in page
