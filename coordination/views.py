@@ -38,14 +38,13 @@ from labs.models import Participant, Result, Submission
 from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
 from labs.review import submission_decide, submission_request_check
 from labs.selectors import current_submissions
-from labs.services import participant_set_reference
+from labs.services import comparison_move, participant_set_reference
 from proficiency import protocols, services
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.selectors import POINT_ORDER
 from proficiency.services import (
     comparison_allowed_transitions,
     comparison_apply_template,
-    comparison_transition,
     measurement_points_generate,
 )
 
@@ -149,7 +148,7 @@ def comparison_status(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
         messages.error(request, "Use the open or close button; publication has its own button.")
     else:
         try:
-            comparison_transition(comparison=comparison, to=target)
+            comparison_move(comparison=comparison, to=target)
         except ApplicationError as exc:
             messages.error(request, exc.message)
         else:
