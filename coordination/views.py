@@ -35,6 +35,7 @@ from coordination.forms import (
 from labs import services as labs_services
 from labs.access import coordinated, coordinated_comparisons
 from labs.models import Participant, Result, Submission
+from labs.notices import notices_of_comparison
 from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
 from labs.review import submission_decide, submission_request_check
 from labs.selectors import current_submissions
@@ -122,6 +123,10 @@ def comparison_edit(request: AuthenticatedHttpRequest, code: str) -> HttpRespons
     return render(request, "coordinator/comparison_form.html", context)
 
 
+#: the coordinator's comparison page lists this many of the newest notices
+NOTICES_SHOWN = 200
+
+
 @login_required
 @require_GET
 def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
@@ -136,6 +141,11 @@ def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
                         if t in (ComparisonStatus.OPEN, ComparisonStatus.CLOSED)],
         "template": protocols.TEMPLATES.get(comparison.protocol),
     }  # fmt: skip
+    notices = list(notices_of_comparison(comparison)[:NOTICES_SHOWN])
+    context["notices"] = notices
+    # counted only when the list is cut (one query fewer on every other page view)
+    short = len(notices) < NOTICES_SHOWN
+    context["n_notices"] = len(notices) if short else notices_of_comparison(comparison).count()
     return render(request, "coordinator/comparison.html", context)
 
 

@@ -279,3 +279,87 @@ def test_a_laboratory_without_addresses_gets_the_notice_only(
     assert notice is not None and mail.outbox == []
     notice.refresh_from_db()
     assert notice.emailed_at is None
+
+
+# --- the inbox and the coordinator's list --------------------------------------------------
+
+
+@pytest.fixture
+def inbox(world):
+    participant = ParticipantFactory.create(
+        comparison=world["comparison"], laboratory=world["lab_a"], code="L07"
+    )
+    old = notify(kind="invitation", participant=participant, dedupe_key="i1",
+                 link="/lab/comparisons/IMU-N1/")  # fmt: skip
+    new = notify(kind="opened", participant=participant, dedupe_key="i2",
+                 link="/lab/comparisons/IMU-N1/")  # fmt: skip
+    assert old is not None and new is not None
+    Notice.objects.filter(pk=old.pk).update(created_at=timezone.now() - dt.timedelta(hours=1))
+    return old, new
+
+
+def test_inbox_lists_newest_first_with_unread_marked(client, world, inbox):
+    _, new = inbox
+    client.force_login(world["a1"])
+    page = client.get("/lab/").content.decode()
+    assert page.index("[IMU-N1] open for submissions") < page.index(
+        "[IMU-N1] invitation to take part"
+    )
+    assert page.count('<span class="badge text-bg-warning me-1">Unread</span>') == 2
+    assert 'title="Unread notices">2<' in page  # the navigation badge
+    assert f'href="/lab/comparisons/IMU-N1/">{new.subject}</a>' in page
+    assert "Your participant code is L07" in page  # the body, under "Message"
+    # another laboratory sees none of them, nor a badge
+    client.force_login(world["b1"])
+    other = client.get("/lab/").content.decode()
+    assert "IMU-N1" not in other and "Unread notices" not in other
+
+
+def test_mark_read(client, world, inbox):
+    old, new = inbox
+    client.force_login(world["b1"])
+    assert client.post(f"/lab/notices/{new.pk}/read/").status_code == 404
+    new.refresh_from_db()
+    assert new.read_at is None
+    client.force_login(world["a1"])
+    assert client.get(f"/lab/notices/{new.pk}/read/").status_code == 405
+    response = client.post(f"/lab/notices/{new.pk}/read/")
+    assert response.status_code == 302 and response["Location"] == "/lab/"
+    new.refresh_from_db()
+    first_read = new.read_at
+    assert first_read is not None
+    page = client.get("/lab/").content.decode()
+    assert page.count('<span class="badge text-bg-warning me-1">Unread</span>') == 1
+    assert 'title="Unread notices">1<' in page
+    client.post(f"/lab/notices/{new.pk}/read/")  # again: the first time is kept
+    new.refresh_from_db()
+    assert new.read_at == first_read
+    assert client.post("/lab/notices/read/").status_code == 302
+    assert Notice.objects.filter(read_at__isnull=True).count() == 0
+    assert "Unread notices" not in client.get("/lab/").content.decode()
+    client.logout()
+    anonymous = client.post(f"/lab/notices/{old.pk}/read/")
+    assert anonymous.status_code == 302 and anonymous["Location"].startswith("/accounts/login/")
+
+
+def test_a_rejection_reason_is_on_the_dashboard(client, world, submitted):
+    submission_decide(submission=submitted, decision="reject", message="Units look like mV/g.",
+                      user=world["coordinator"])  # fmt: skip
+    client.force_login(world["a1"])
+    page = client.get("/lab/").content.decode()
+    assert "[IMU-N1] submission version 1 rejected" in page
+    assert "Units look like mV/g." in page
+
+
+def test_coordinator_sees_what_was_sent_to_whom(client, world, inbox):
+    old, _ = inbox
+    notice_email_send(notice_id=old.pk)
+    client.force_login(world["coordinator"])
+    page = client.get("/coordinator/IMU-N1/").content.decode()
+    assert 'Notices <span class="badge text-bg-light border">2</span>' in page
+    assert page.index("Round opened") < page.index("Invitation")
+    assert page.count("<code>L07</code>") >= 2 and "Alpha Lab" in page
+    assert page.count(">yes</span>") == 1 and page.count("not e-mailed") == 1
+    # a laboratory's member is no coordinator: 404
+    client.force_login(world["a1"])
+    assert client.get("/coordinator/IMU-N1/").status_code == 404
