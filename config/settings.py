@@ -55,6 +55,9 @@ if not DEBUG and _EMAIL["EMAIL_BACKEND"] not in (
         "write password reset links into the log)."
     )
 DEFAULT_FROM_EMAIL = env.str("DEFAULT_FROM_EMAIL", default="proficiency-testing@localhost")
+# The address of the site as laboratories reach it: e-mailed notices link to
+# SITE_URL + the page's path (docs/lifecycles.md §6). The default suits the quick start.
+SITE_URL = env.str("SITE_URL", default="http://127.0.0.1:8000").rstrip("/")
 
 INSTALLED_APPS = [
     # the admin, for superusers only (common/admin_site.py)
@@ -210,6 +213,9 @@ CELERY_BEAT_SCHEDULE = {
     "reports-pending": {"task": "analysis.tasks.reports_pending_task", "schedule": 300.0},
     # analysis runs and raw recomputations whose worker was lost are re-queued
     "jobs-sweep": {"task": "analysis.tasks.jobs_sweep_task", "schedule": JOB_SWEEP_SECONDS},
+    # deadline reminders (Comparison.reminder_days; once per participant and day count), and
+    # notices whose e-mail was not sent (broker down) sent again
+    "notices-reminders": {"task": "labs.tasks.notices_reminders_task", "schedule": 3600.0},
 }
 
 API_BROWSABLE = env.bool("API_BROWSABLE", default=DEBUG)

@@ -39,6 +39,7 @@ class ComparisonForm(BootstrapMixin, forms.ModelForm):
             "sigma_pt_mode",
             "sigma_pt_value",
             "en_limit",
+            "reminder_days",
         ]
         widgets = {
             "description": forms.Textarea(attrs={"rows": 3}),

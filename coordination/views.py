@@ -36,17 +36,17 @@ from coordination.forms import (
 from labs import services as labs_services
 from labs.access import coordinated, coordinated_comparisons
 from labs.models import Participant, Result, Submission
+from labs.notices import notices_of_comparison
 from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
 from labs.review import submission_decide, submission_request_check
 from labs.selectors import current_submissions
-from labs.services import participant_set_reference
+from labs.services import comparison_move, participant_set_reference
 from proficiency import protocols, services
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.selectors import POINT_ORDER
 from proficiency.services import (
     comparison_allowed_transitions,
     comparison_apply_template,
-    comparison_transition,
     measurement_points_generate,
 )
 
@@ -124,6 +124,10 @@ def comparison_edit(request: AuthenticatedHttpRequest, code: str) -> HttpRespons
     return render(request, "coordinator/comparison_form.html", context)
 
 
+#: the coordinator's comparison page lists this many of the newest notices
+NOTICES_SHOWN = 200
+
+
 @login_required
 @require_GET
 def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
@@ -138,6 +142,11 @@ def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
                         if t in (ComparisonStatus.OPEN, ComparisonStatus.CLOSED)],
         "template": protocols.TEMPLATES.get(comparison.protocol),
     }  # fmt: skip
+    notices = list(notices_of_comparison(comparison)[:NOTICES_SHOWN])
+    context["notices"] = notices
+    # counted only when the list is cut (one query fewer on every other page view)
+    short = len(notices) < NOTICES_SHOWN
+    context["n_notices"] = len(notices) if short else notices_of_comparison(comparison).count()
     return render(request, "coordinator/comparison.html", context)
 
 
@@ -150,7 +159,7 @@ def comparison_status(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
         messages.error(request, "Use the open or close button; publication has its own button.")
     else:
         try:
-            comparison_transition(comparison=comparison, to=target)
+            comparison_move(comparison=comparison, to=target)
         except ApplicationError as exc:
             messages.error(request, exc.message)
         else:

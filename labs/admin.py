@@ -6,6 +6,7 @@ from labs.models import (
     LabAPIKey,
     Laboratory,
     Membership,
+    Notice,
     Participant,
     RawFile,
     RawRecomputation,
@@ -53,6 +54,16 @@ class SubmissionAdmin(RecordedByServicesAdmin):
     search_fields = ["participant__code", "participant__laboratory__name"]
     list_select_related = ["participant__comparison", "submitted_by"]
     inlines = [ResultInline]
+
+
+@admin.register(Notice)
+class NoticeAdmin(RecordedByServicesAdmin):
+    list_display = ["created_at", "kind", "comparison", "laboratory", "participant",
+                    "emailed_at", "read_at"]  # fmt: skip
+    list_filter = ["kind", "comparison"]
+    search_fields = ["subject", "dedupe_key", "laboratory__name", "participant__code"]
+    list_select_related = ["comparison", "laboratory", "participant"]
+    raw_id_fields = ["laboratory", "comparison", "participant"]
 
 
 @admin.register(SubmissionKey)

@@ -400,3 +400,57 @@ class RawRecomputation(models.Model):
         if self.sensitivity is None:
             return None
         return 100 * (self.sensitivity - self.reported_value) / self.reported_value
+
+
+class Notice(models.Model):
+    """A message to one laboratory about one comparison (docs/lifecycles.md §6): shown in
+    the laboratory's inbox and e-mailed to its members once, after commit.
+
+    ``dedupe_key`` names the event (e.g. ``receipt:<submission id>``): the same event never
+    makes a second notice, so a service or a beat run repeated changes nothing.
+    """
+
+    class Kind(models.TextChoices):
+        INVITATION = "invitation", "Invitation"
+        OPENED = "opened", "Round opened"
+        REMINDER = "reminder", "Deadline reminder"
+        RECEIPT = "receipt", "Submission receipt"
+        ACCEPTED = "accepted", "Submission accepted"
+        REJECTED = "rejected", "Submission rejected"
+        CHECK = "check", "Request to check a result"
+        PUBLISHED = "published", "Results published"
+
+    laboratory = models.ForeignKey(Laboratory, on_delete=models.CASCADE, related_name="notices")
+    comparison = models.ForeignKey(Comparison, on_delete=models.CASCADE, related_name="notices")
+    participant = models.ForeignKey(
+        Participant, null=True, blank=True, on_delete=models.CASCADE, related_name="notices"
+    )
+    kind = models.CharField(max_length=12, choices=Kind.choices)
+    subject = models.CharField(max_length=200)
+    body = models.TextField()
+    #: the site path of the page the notice concerns (``SITE_URL`` makes it absolute)
+    link = models.CharField(max_length=500, blank=True)
+    dedupe_key = models.CharField(max_length=200, unique=True)
+    created_at = models.DateTimeField(auto_now_add=True, db_index=True)
+    read_at = models.DateTimeField(null=True, blank=True)
+    emailed_at = models.DateTimeField(null=True, blank=True)
+    #: the addresses the e-mail went to (comma-separated), for the coordinator's list
+    emailed_to = models.TextField(blank=True)
+
+    class Meta:
+        ordering = ["-created_at", "-id"]
+        indexes = [models.Index(fields=["laboratory", "read_at"], name="notice_lab_unread")]
+        constraints = [
+            models.CheckConstraint(
+                condition=Q(
+                    kind__in=[
+                        "invitation", "opened", "reminder", "receipt", "accepted",
+                        "rejected", "check", "published",
+                    ]
+                ),
+                name="notice_kind_valid",
+            ),
+        ]  # fmt: skip
+
+    def __str__(self) -> str:
+        return f"{self.kind} to {self.laboratory} ({self.comparison})"

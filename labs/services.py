@@ -24,7 +24,9 @@ from labs.importers import (
     parse_table,
 )
 from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission, SubmissionKey
+from labs.notices import notify_invited, notify_opened, notify_receipt
 from labs.selectors import ComparisonTable, comparison_table
+from proficiency import services as proficiency_services
 from proficiency.models import Comparison, ComparisonStatus
 
 CODE_PREFIX = "L"
@@ -77,13 +79,30 @@ def participants_invite(
 ) -> list[Participant]:
     """Invite ``laboratories`` to ``comparison``, all or none, in one transaction; each new
     participant gets a random code (:func:`participant_code_new`), an existing participation
-    is returned unchanged (so a repeated invitation is harmless)."""
+    is returned unchanged (so a repeated invitation is harmless). Each new participant's
+    laboratory is sent an invitation notice (docs/lifecycles.md §6)."""
     if not laboratories:
         raise ValidationFailed(
             f"Choose at least one laboratory to invite to {comparison.code}.",
             errors=[{"field": "laboratories", "message": "at least one laboratory"}],
         )
-    return [participant_add(comparison=comparison, laboratory=lab) for lab in laboratories]
+    before = set(comparison.participants.values_list("pk", flat=True))
+    invited = [participant_add(comparison=comparison, laboratory=lab) for lab in laboratories]
+    for participant in invited:
+        if participant.pk not in before:
+            notify_invited(participant)
+    return invited
+
+
+@transaction.atomic
+def comparison_move(*, comparison: Comparison, to: str) -> Comparison:
+    """A coordinator's status change (``proficiency.services.comparison_transition``, the
+    one life cycle); on opening, every participant is sent a notice (docs/lifecycles.md
+    §6). Publication has its own service (``analysis.publication``)."""
+    moved = proficiency_services.comparison_transition(comparison=comparison, to=to)
+    if moved.status == ComparisonStatus.OPEN:
+        notify_opened(moved)
+    return moved
 
 
 St = Submission.Status
@@ -228,6 +247,9 @@ def submission_save(
     # the version's result count, as the history annotates it (the API's n_results): the
     # rows just stored are all its results (a draft's earlier ones were deleted above)
     saved.n_results = n_results  # type: ignore[attr-defined]
+    if saved.status == St.SUBMITTED:
+        saved.participant = participant
+        notify_receipt(saved, n_results)
     saved.replayed = False  # type: ignore[attr-defined]
     return saved
 

@@ -42,3 +42,24 @@ def housekeeping() -> dict[str, int]:
     key_age = dt.timedelta(hours=settings.IDEMPOTENCY_KEY_HOURS)
     keys, _ = SubmissionKey.objects.filter(created_at__lt=now - key_age).delete()
     return {"sessions": sessions, "login_records": logins, "submission_keys": keys}
+
+
+@shared_task(bind=True, acks_late=True, reject_on_worker_lost=True, soft_time_limit=60,
+             time_limit=90)  # fmt: skip
+def notice_email_task(self, notice_id: int) -> bool:
+    """E-mail notice ``notice_id`` to its laboratory's members; a second delivery finds the
+    notice claimed and sends nothing (docs/lifecycles.md §6)."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
+    from labs.notices import notice_email_send
+
+    return notice_email_send(notice_id=notice_id)
+
+
+# Run by Celery beat (``CELERY_BEAT_SCHEDULE``): each reminder and each notice is made once
+# (its dedupe key), so a second run, or two beats, send nothing more.
+@shared_task(soft_time_limit=300, time_limit=360)
+def notices_reminders_task() -> dict[str, int]:
+    """Deadline reminders due now, and notices whose e-mail was never sent, queued again."""
+    from labs.notices import notices_resend, reminders_send  # as above: a cycle
+
+    return {"reminders": reminders_send(), "resent": notices_resend()}

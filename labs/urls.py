@@ -8,6 +8,8 @@ app_name = "labs"
 
 urlpatterns = [
     path("lab/", views.dashboard, name="dashboard"),
+    path("lab/notices/read/", views.notices_read_all, name="notices_read_all"),
+    path("lab/notices/<int:pk>/read/", views.notice_read, name="notice_read"),
     path("lab/comparisons/<slug:code>/", views.comparison_detail, name="comparison"),
     path("lab/comparisons/<slug:code>/results/", views.results_grid, name="grid"),
     path("lab/comparisons/<slug:code>/upload/", views.results_upload, name="upload"),

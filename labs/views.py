@@ -30,6 +30,7 @@ from labs.access import comparisons_visible_to, managed_lab, managed_labs, parti
 from labs.forms import APIKeyCreateForm, ResultGridForm, ResultUploadForm
 from labs.importers.values import human_size
 from labs.models import LabAPIKey, Laboratory, Participant, RawRecord, Result, Submission
+from labs.notices import notice_mark_read, notices_for
 from labs.raw import RawUploadLimit
 from labs.raw_forms import RawUploadForm
 from labs.raw_selectors import raw_point_choices, raw_record_figure, raw_record_get, raw_records_of
@@ -109,10 +110,40 @@ def home(request: HttpRequest) -> HttpResponse:
     )
 
 
+#: the inbox shows this many notices per page
+NOTICES_PER_PAGE = 20
+
+
 @login_required
 @require_GET
 def dashboard(request: HttpRequest) -> HttpResponse:
-    return render(request, "labs/dashboard.html", {"participations": _participations(request)})
+    """The lab's comparisons and its inbox (docs/lifecycles.md §6), newest notice first."""
+    notices = Paginator(notices_for(request.user), NOTICES_PER_PAGE).get_page(
+        request.GET.get("notices")
+    )
+    context = {"participations": _participations(request), "notices": notices}
+    return render(request, "labs/dashboard.html", context)
+
+
+@login_required
+@require_http_methods(["POST"])
+def notice_read(request: HttpRequest, pk: int) -> HttpResponse:
+    """Mark one notice of the user's laboratories read; 404 for anyone else's."""
+    notice = notices_for(request.user).filter(pk=pk).first()
+    if notice is None:
+        raise Http404("No such notice for your laboratory.")
+    notice_mark_read(notice=notice)
+    return redirect("labs:dashboard")
+
+
+@login_required
+@require_http_methods(["POST"])
+def notices_read_all(request: HttpRequest) -> HttpResponse:
+    """Mark every unread notice of the user's laboratories read."""
+    for notice in notices_for(request.user).filter(read_at__isnull=True):
+        notice_mark_read(notice=notice)
+    messages.success(request, "All notices marked read.")
+    return redirect("labs:dashboard")
 
 
 @login_required

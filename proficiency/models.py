@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 from django.conf import settings
+from django.core.exceptions import ValidationError
 from django.db import models
 from django.db.models import Q
 
@@ -78,6 +79,33 @@ class Direction(models.TextChoices):
 
 DEFAULT_UNIT = "D/(m/s^2)"
 
+#: Days before the deadline on which participants that have not submitted are reminded
+#: (docs/lifecycles.md §6); a new comparison's default, and that of every existing one.
+DEFAULT_REMINDER_DAYS = "7,1"
+MAX_REMINDER_DAYS = 365
+
+
+def reminder_days_parse(text: str) -> list[int]:
+    """``"7, 1"`` → ``[1, 7]`` (ascending, no repeats); ``ValueError`` naming the bad item."""
+    days: set[int] = set()
+    for item in (t.strip() for t in text.split(",")):
+        if not item:
+            continue
+        if not item.isdigit() or not 1 <= int(item) <= MAX_REMINDER_DAYS:
+            raise ValueError(
+                f"{item!r} is not a number of days from 1 to {MAX_REMINDER_DAYS}; write whole "
+                "days separated by commas, e.g. 7,1 (empty: no reminders)."
+            )
+        days.add(int(item))
+    return sorted(days)
+
+
+def validate_reminder_days(text: str) -> None:
+    try:
+        reminder_days_parse(text)
+    except ValueError as exc:
+        raise ValidationError(str(exc)) from None
+
 
 class Comparison(models.Model):
     """One proficiency test / interlaboratory comparison round."""
@@ -102,6 +130,14 @@ class Comparison(models.Model):
         null=True, blank=True, help_text="Absolute value, or percent for the relative mode."
     )
     en_limit = models.FloatField(default=1.0)
+    reminder_days = models.CharField(
+        max_length=60,
+        blank=True,
+        default=DEFAULT_REMINDER_DAYS,
+        validators=[validate_reminder_days],
+        help_text="Days before the deadline on which laboratories that have not submitted "
+        "are reminded, e.g. 7,1 (empty: no reminders).",
+    )
     coordinators = models.ManyToManyField(
         settings.AUTH_USER_MODEL, blank=True, related_name="coordinated_comparisons"
     )

@@ -33,7 +33,8 @@ C1 = "SEC-C1"
 
 #: (persona, url, budget, setup): budget is the most queries the route may run at any size
 #: (measured 2026-11-23, plus 2); setup "published" measures with comparison 1 published
-#: (what a laboratory needs to see scores and reports), else as built (analysed)
+#: (what a laboratory needs to see scores and reports), else as built (analysed); every
+#: signed-in page also counts the unread notices for the navigation's badge (one query)
 ROUTES: list[tuple[str, str, int, str]] = [
     # laboratory web pages
     ("a_staff", "/lab/", 9, ""),
@@ -42,7 +43,7 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("a_staff", f"/lab/comparisons/{C1}/submissions/", 10, ""),
     ("a_staff", f"/lab/comparisons/{C1}/raw-data/", 13, ""),
     ("a_staff", f"/reports/{C1}/", 11, "published"),
-    ("a_staff", f"/results/{C1}/", 18, "published"),
+    ("a_staff", f"/results/{C1}/", 19, "published"),
     ("a_staff", f"/results/{C1}/scores/", 20, "published"),
     # laboratory API (API key)
     ("key_a", "/api/v1/comparisons/", 5, ""),
@@ -55,7 +56,7 @@ ROUTES: list[tuple[str, str, int, str]] = [
     # coordinator web pages
     ("coord1", f"/coordinator/{C1}/", 11, ""),
     ("coord1", f"/coordinator/{C1}/review/", 10, ""),
-    ("coord1", f"/coordinator/{C1}/results/", 18, ""),
+    ("coord1", f"/coordinator/{C1}/results/", 19, ""),
     ("coord1", f"/coordinator/{C1}/analysis/runs/", 11, ""),
     ("coord1", f"/coordinator/{C1}/scores/", 19, ""),
     ("coord1", f"/coordinator/{C1}/raw-data/", 10, ""),

@@ -34,7 +34,7 @@ from labs.access import (
 from labs.api.views import ApiView
 from labs.models import Result, Submission
 from labs.review import submission_decide, submission_request_check
-from proficiency.services import comparison_transition
+from labs.services import comparison_move
 
 FACTORS = ("axis", "frequency", "device", "bench", "direction", "lab")
 POINT_FILTERS = [
@@ -191,7 +191,7 @@ class ComparisonTransition(ApiView):
         body = TransitionSerializer(data=request.data)
         if not body.is_valid():
             raise ValidationFailed("Give to=open or to=closed.")
-        c = comparison_transition(comparison=access.comparison, to=body.validated_data["to"])
+        c = comparison_move(comparison=access.comparison, to=body.validated_data["to"])
         return Response(s.ComparisonStateSerializer(c).data)
 
 

@@ -17,6 +17,7 @@ from common import numbers
 from common.points import format_number, point_label
 from labs.access import managed_labs
 from labs.models import Laboratory, Submission
+from labs.notices import notices_unread_count
 from proficiency.models import ComparisonStatus, MeasurementPoint
 from proficiency.protocols import BenchPlan
 
@@ -64,6 +65,12 @@ def local_time(value: dt.datetime | None) -> str:
         value.astimezone(dt.UTC).isoformat(),
         local.strftime("%Y-%m-%d %H:%M %Z"),
     )
+
+
+@register.simple_tag
+def unread_notices(user: User | AnonymousUser) -> int:
+    """The number of unread notices of the user's laboratories (navigation badge)."""
+    return notices_unread_count(user)
 
 
 @register.simple_tag

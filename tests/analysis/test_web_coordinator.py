@@ -228,13 +228,16 @@ def test_reject_needs_a_message(client, demo):
     )
 
 
-def test_ask_to_check_says_nothing_about_the_deviation(client, demo):
+def test_ask_to_check_says_nothing_about_the_deviation(
+    client, demo, django_capture_on_commit_callbacks
+):
     client.force_login(user("coordinator"))
     participant = Participant.objects.get(comparison=demo, laboratory__name__startswith="Outlier")
     result = participant.submissions.get().results.first()
     assert result is not None
     mail.outbox.clear()
-    response = client.post(f"/coordinator/{CODE}/review/results/{result.pk}/check/")
+    with django_capture_on_commit_callbacks(execute=True):  # the e-mail goes after commit
+        response = client.post(f"/coordinator/{CODE}/review/results/{result.pk}/check/")
     assert response.status_code == 302
     assert len(mail.outbox) == 1
     body = str(mail.outbox[0].body)

@@ -48,6 +48,9 @@ PK = {
     # tests/labs/test_raw_data*.py check a real record persona by persona
     "lab/comparisons/<slug:code>/raw-data/<int:pk>/": "result",
     "api/v1/comparisons/<slug:code>/raw-data/<int:pk>/": "result",
+    # the world holds no notice either: any pk is nobody's -> 404 for the signed-in;
+    # tests/labs/test_notices.py checks a real notice persona by persona
+    "lab/notices/<int:pk>/read/": "result",
 }
 #: the password-reset link carries its own token (an invalid one here)
 TOKEN = {"accounts/reset/<uidb64>/<token>/": "reset_token"}
@@ -98,6 +101,16 @@ TABLE: dict[str, Row] = {
     "lab/comparisons/<slug:code>/submissions/<int:version>/": Row(
         get="302 200 200 404 404 404 302 302 404",
         post="302 405 405 405 405 405 302 302 405",
+    ),
+    # the inbox's buttons: POST only; one notice of the user's own labs, else 404
+    "lab/notices/<int:pk>/read/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
+    # every unread notice of the user's own labs (none for coordinators): back to /lab/
+    "lab/notices/read/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 302 302 302 302 302 302 302 302",
     ),
     # managers are redirected to their lab's key page
     "lab/api-keys/": Row(

@@ -71,7 +71,8 @@ def _statements(ctx: CaptureQueriesContext) -> list[str]:
 def test_submission_post_query_count(world):
     """A new submitted version: key + laboratory, participant + comparison, the points
     (once, for the importer and for storing), the participant lock, the latest version,
-    the new version stored submitted at once with its one audit entry."""
+    the new version stored submitted at once with its one audit entry, and its receipt
+    notice (its dedupe key looked up, the notice stored; docs/lifecycles.md §6)."""
     client = world.client("key_a")
     with CaptureQueriesContext(connection) as ctx:
         response = client.post(SUBMIT, {"results": rows()}, format="json")
@@ -79,7 +80,7 @@ def test_submission_post_query_count(world):
     body = response.json()
     assert (body["status"], body["n_results"]) == ("submitted", len(rows()))
     sql = _statements(ctx)
-    assert len(sql) == 7, "\n".join(sql)
+    assert len(sql) == 9, "\n".join(sql)
     assert sum('FROM "proficiency_measurementpoint"' in s for s in sql) == 1
     assert not any(s.startswith("UPDATE") for s in sql)  # no draft step, no second save
     submission = Submission.objects.get(
