@@ -7,7 +7,7 @@ from django.db.migrations.executor import MigrationExecutor
 
 BEFORE = [("proficiency", "0003_assigned_value_methods_median_niqr_q_hampel"),
           ("labs", "0006_result_repeatability")]  # fmt: skip
-AFTER = [("proficiency", "0004_comparison_reminder_days"), ("labs", "0007_notice")]
+AFTER = [("proficiency", "0004_comparison_reminder_days"), ("labs", "0008_notice")]
 
 
 @pytest.mark.django_db(transaction=True)

@@ -6,7 +6,7 @@ from django.db import migrations, models
 
 class Migration(migrations.Migration):
     dependencies = [
-        ("labs", "0006_result_repeatability"),
+        ("labs", "0007_result_expanded_uncertainty_entered"),
         ("proficiency", "0004_comparison_reminder_days"),
     ]
 
