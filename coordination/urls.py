@@ -16,6 +16,7 @@ urlpatterns = [
     path(C, views.comparison_detail, name="comparison"),
     path(C + "edit/", views.comparison_edit, name="edit"),
     path(C + "status/", views.comparison_status, name="status"),
+    path(C + "confirm/<slug:action>/", views.confirm, name="confirm"),
     path(C + "report-notes/", views.report_notes, name="report_notes"),
     path(C + "devices/new/", views.device_add, name="device_add"),
     path(C + "points/generate/", views.points_generate, name="points_generate"),

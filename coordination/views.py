@@ -23,6 +23,7 @@ from django.views.decorators.http import require_GET, require_http_methods, requ
 from analysis.reports.services import report_notes_update
 from common.errors import ApplicationError
 from common.sizes import counted
+from coordination.confirm import ACTIONS, confirmation
 from coordination.forms import (
     ComparisonCreateForm,
     ComparisonForm,
@@ -148,6 +149,18 @@ def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
     short = len(notices) < NOTICES_SHOWN
     context["n_notices"] = len(notices) if short else notices_of_comparison(comparison).count()
     return render(request, "coordinator/comparison.html", context)
+
+
+@login_required
+@require_GET
+def confirm(request: AuthenticatedHttpRequest, code: str, action: str) -> HttpResponse:
+    """The confirmation page of open, close, run or publish: what will happen, then the
+    button that does it (coordination.confirm)."""
+    comparison = coordinated(request, code)
+    if action not in ACTIONS:
+        raise Http404(f"No action {action!r}.")
+    context = {"comparison": comparison, "c": confirmation(comparison, action)}
+    return render(request, "coordinator/confirm.html", context)
 
 
 @login_required

@@ -46,6 +46,7 @@ ROW_HEIGHT = 7.5 * 1.2 + 3.0  # leading of the 7.5 pt cell font + top and bottom
 STATUS_TEXT = {
     "final": "Final",
     "preliminary": "Preliminary (not the final report; results may still change)",
+    "preview": "Preview for the coordinator (not issued; results may still change)",
 }
 
 

@@ -1,0 +1,157 @@
+"""What a coordinator's action will do, said before it is done: the confirmation pages of
+open, close, run and publish (docs/lifecycles.md, the comparison's life cycle).
+
+Each action's page states its consequences with the round's own numbers (how many
+laboratories are e-mailed, how many submissions are analysed, what cannot be undone) and
+posts to the action's own URL: the actions themselves are unchanged, so the API and
+scripted clients are not affected."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from django.urls import reverse
+
+from analysis.models import Report
+from analysis.selectors import current_run
+from common.sizes import counted
+from labs.models import Submission
+from labs.selectors import current_submissions
+from proficiency.models import Comparison, ComparisonStatus
+from proficiency.services import comparison_allowed_transitions
+
+S = ComparisonStatus
+ACTIONS = ("open", "close", "run", "publish")
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """A confirmation page: what the button does and its consequences, sentence by sentence."""
+
+    title: str
+    button: str
+    action: str  # the URL the form posts to
+    consequences: list[str]
+    fields: dict[str, str] = field(default_factory=dict)  # hidden form fields
+    final: bool = False  # cannot be undone: the button is red
+    refused: str = ""  # why the action is not possible now (no form then)
+
+
+def confirmation(comparison: Comparison, action: str) -> Confirmation:
+    """The page of ``action`` (one of :data:`ACTIONS`) for ``comparison``."""
+    return {"open": _open, "close": _close, "run": _run, "publish": _publish}[action](comparison)
+
+
+def _labs(comparison: Comparison) -> str:
+    return counted(
+        comparison.participants.count(), "participating laboratory", "participating laboratories"
+    )
+
+
+def _open(c: Comparison) -> Confirmation:
+    reopen = c.status == S.CLOSED
+    deadline = c.submission_deadline
+    when = (
+        f"until the deadline, {deadline:%Y-%m-%d %H:%M %Z}" if deadline else "with no deadline set"
+    )
+    told = (
+        "The laboratories are e-mailed that the round is open again only if its deadline changed."
+        if reopen
+        else f"{_labs(c)} are e-mailed that the round is open, with a link to it."
+    )
+    return Confirmation(
+        title=f"{'Reopen' if reopen else 'Open'} {c.code} for submissions",
+        button="Reopen for submissions" if reopen else "Open for submissions",
+        action=reverse("coordinator:status", args=[c.code]),
+        fields={"to": S.OPEN},
+        consequences=[
+            f"Participants can save, upload and submit results {when}.",
+            told,
+            "You can close the round again at any time.",
+        ],
+        refused="" if S.OPEN in comparison_allowed_transitions(c) else _not_now(c, "opened"),
+    )
+
+
+def _close(c: Comparison) -> Confirmation:
+    n = c.participants.count()
+    sent = current_submissions(c, statuses=tuple(Submission.Status)).exclude(
+        status=Submission.Status.DRAFT
+    )
+    submitted = sent.values("participant").distinct().count()
+    return Confirmation(
+        title=f"Close {c.code} for submissions",
+        button="Close submissions",
+        action=reverse("coordinator:status", args=[c.code]),
+        fields={"to": S.CLOSED},
+        consequences=[
+            f"{submitted} of {counted(n, 'participant')} have submitted; "
+            "nobody can save or submit results after this.",
+            "Nobody is e-mailed. You can reopen the round (for example to extend the deadline).",
+        ],
+        refused="" if S.CLOSED in comparison_allowed_transitions(c) else _not_now(c, "closed"),
+    )
+
+
+def _run(c: Comparison) -> Confirmation:
+    accepted = current_submissions(c).count()
+    refused = ""
+    if c.status not in (S.CLOSED, S.ANALYSED):
+        refused = (
+            f"{c.code} is {c.get_status_display().lower()}: close it before running the analysis."
+        )
+    return Confirmation(
+        title=f"Run the analysis of {c.code}",
+        button="Run analysis",
+        action=reverse("coordinator:run_start", args=[c.code]),
+        consequences=[
+            f"The analysis computes assigned values, scores and compatibility from "
+            f"{counted(accepted, 'accepted submission')} (each participant's latest accepted "
+            "version) with the round's settings, in the background.",
+            "When it succeeds its results become the ones shown to you; earlier runs stay "
+            "browsable. Nothing is shown to the participants and nobody is e-mailed.",
+        ],
+        refused=refused,
+    )
+
+
+def _publish(c: Comparison) -> Confirmation:
+    run = current_run(c)
+    n = c.participants.count()
+    preliminary = (
+        Report.objects.filter(comparison=c, superseded=False)
+        .exclude(status=Report.Status.FINAL)
+        .count()
+    )
+    refused = ""
+    if run is None:
+        refused = f"{c.code} has no successful analysis run to publish."
+    elif S.PUBLISHED not in comparison_allowed_transitions(c):
+        refused = _not_now(c, "published")
+    return Confirmation(
+        title=f"Publish the results of {c.code}",
+        button="Publish results",
+        action=reverse("coordinator:publish", args=[c.code]),
+        final=True,
+        consequences=[
+            f"The results of analysis run {run.pk if run else '—'} become visible to the "
+            f"{_labs(c)}, each seeing the others by code only.",
+            f"{counted(n, 'laboratory', 'laboratories')} are e-mailed, with links to their "
+            "results and reports.",
+            f"The final reports are issued in the background (the summary and "
+            f"{counted(n, 'participant report')})"
+            + (
+                f"; {counted(preliminary, 'preliminary report')} "
+                f"{'is' if preliminary == 1 else 'are'} superseded by them."
+                if preliminary
+                else "."
+            ),
+            "Publication is final: it cannot be undone. A correction afterwards is a "
+            "reissued report.",
+        ],
+        refused=refused,
+    )
+
+
+def _not_now(c: Comparison, done: str) -> str:
+    return f"{c.code} is {c.get_status_display().lower()}: it cannot be {done} now."
