@@ -39,14 +39,16 @@ class ScoreFilterForm(BootstrapMixin, forms.Form):
         super().__init__(data)
         points = comparison.measurement_points
         devices = comparison.devices.order_by("name").values_list("name", flat=True)
-        freqs = sorted(set(points.values_list("frequency_hz", flat=True)))
+        # the levels the round has, in one query: frequencies and the three named levels
+        present = set(
+            points.order_by().values_list("axis", "bench", "direction", "frequency_hz").distinct()
+        )
+        freqs = sorted({row[3] for row in present})
         cast(forms.ChoiceField, self.fields["device"]).choices = ALL + [(d, d) for d in devices]
         cast(forms.ChoiceField, self.fields["frequency_hz"]).choices = ALL + [
             (repr(f), format_number(f)) for f in freqs
         ]
         cast(forms.ChoiceField, self.fields["lab"]).choices = ALL + [(c, c) for c in lab_codes]
-        # only the levels the round has (one query for the three)
-        present = set(points.order_by().values_list("axis", "bench", "direction").distinct())
         for i, (name, levels) in enumerate(
             (("axis", Axis), ("bench", Bench), ("direction", Direction))
         ):

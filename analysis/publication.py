@@ -16,6 +16,18 @@ from proficiency.models import ComparisonStatus as S
 from proficiency.services import comparison_transition
 
 
+def publish_refusal(comparison: Comparison) -> str | None:
+    """Why ``comparison`` cannot be published now for want of an authoriser (read from the
+    database), or None; the state rules are the transition's own."""
+    if not Comparison.objects.filter(pk=comparison.pk).exclude(authorised_by_name="").exists():
+        return (
+            f"{comparison.code} cannot be published: publication issues the final reports, "
+            "which need the name and role of the person authorising them. Enter them under "
+            "'Report comments and authorisation' on the comparison's page, then publish."
+        )
+    return None
+
+
 def comparison_publish(*, comparison: Comparison, user: object | None = None) -> Comparison:
     """analysed → published: results become visible to the participants, who are each sent
     a notice with the links to their results and the reports (labs.notices: the inbox and
@@ -23,12 +35,8 @@ def comparison_publish(*, comparison: Comparison, user: object | None = None) ->
     the transaction of the status change every preliminary report is superseded, and after
     commit the tasks issue the final versions (a report still rendering for the analysed
     comparison holds the comparison's row, so the status change waits for it)."""
-    if not Comparison.objects.filter(pk=comparison.pk).exclude(authorised_by_name="").exists():
-        raise StateConflict(
-            f"{comparison.code} cannot be published: publication issues the final reports, "
-            "which need the name and role of the person authorising them. Enter them under "
-            "'Report comments and authorisation' on the comparison's page, then publish."
-        )
+    if (refused := publish_refusal(comparison)) is not None:
+        raise StateConflict(refused)
     with transaction.atomic():
         published = comparison_transition(comparison=comparison, to=S.PUBLISHED)
         reports_preliminary_supersede(comparison=published)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from django.urls import reverse
 
 from analysis.models import Report
+from analysis.publication import publish_refusal
 from analysis.selectors import current_run
 from common.sizes import counted
 from labs.models import Submission
@@ -128,6 +129,8 @@ def _publish(c: Comparison) -> Confirmation:
         refused = f"{c.code} has no successful analysis run to publish."
     elif S.PUBLISHED not in comparison_allowed_transitions(c):
         refused = _not_now(c, "published")
+    elif (missing := publish_refusal(c)) is not None:
+        refused = missing
     return Confirmation(
         title=f"Publish the results of {c.code}",
         button="Publish results",

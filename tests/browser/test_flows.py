@@ -196,6 +196,7 @@ def test_coordinator_publishes_and_lab_downloads_pdf(
     _sign_in(page, base, "carla", shots)
     page.goto(f"{base}/coordinator/{CODE}/")
     shots(page, "coordinator-comparison")
+    page.get_by_role("link", name="Run analysis…").click()  # its confirmation page
     page.get_by_role("button", name="Run analysis").click()
     expect(page.get_by_role("heading", name=re.compile(r"Analysis run \d+"))).to_be_visible()
     bar = page.locator("#run-progress .progress-bar")
@@ -222,9 +223,10 @@ def test_coordinator_publishes_and_lab_downloads_pdf(
     page.get_by_role("link", name="See the results").click()
     expect(page.get_by_role("heading", name="Assigned values")).to_be_visible()
     # X 5 Hz: equal U = 8, values 419, 420, 431 -> x_pt = 423.333, u = 4 / sqrt 3 = 2.309,
-    # Birge ratio sqrt(5.54 / 2) = 1.66.
+    # Birge ratio sqrt(5.54 / 2) = 1.66; written as a metrologist does (GUM 7.2.6: the
+    # uncertainty to two digits, x_pt to the same place as U(x_pt) = 4.6).
     first = page.locator("table tbody tr").first
-    for shown in ("423.333", "2.309", "4.619", "5.54", "1.66"):  # U(x_pt) = 2·2.309
+    for shown in ("423.3", "2.3", "4.6", "5.54", "1.66"):  # U(x_pt) = 2·2.309
         expect(first).to_contain_text(shown)
     shots(page, "coordinator-results", publish=True)
     page.get_by_role("link", name="Charts").first.click()
@@ -239,9 +241,11 @@ def test_coordinator_publishes_and_lab_downloads_pdf(
     shots(page, "coordinator-heatmap", publish=True)
 
     page.get_by_role("link", name="Assigned values").first.click()
-    page.get_by_role("button", name="Publish results").click()
-    refused = page.get_by_role("status").filter(has_text="cannot be published")
+    page.get_by_role("link", name="Publish results…").click()
+    # the confirmation says why it cannot be done yet, and offers no button
+    refused = page.get_by_role("alert").filter(has_text="cannot be published")
     expect(refused).to_contain_text("authorising")
+    expect(page.get_by_role("button", name="Publish results")).to_have_count(0)
     shots(page, "coordinator-publish-refused")
     assert Comparison.objects.get(pk=comparison.pk).status == ComparisonStatus.ANALYSED
 
@@ -255,6 +259,9 @@ def test_coordinator_publishes_and_lab_downloads_pdf(
     page.get_by_role("button", name="Save").click()
     expect(page.get_by_text("Dana Quality, Quality manager")).to_be_visible()
     page.get_by_role("link", name="Results", exact=True).click()
+    page.get_by_role("link", name="Publish results…").click()
+    expect(page.get_by_text("Publication is final: it cannot be undone.")).to_be_visible()
+    shots(page, "coordinator-publish-confirm")
     page.get_by_role("button", name="Publish results").click()
     expect(page.get_by_role("status").filter(has_text="is published")).to_be_visible()
     shots(page, "coordinator-published")

@@ -85,6 +85,7 @@ def test_coordinator_cancels_a_stuck_run_and_publishes(
     base = live_server.url
     _sign_in(page, base, "carla", shots)
     page.goto(f"{base}/coordinator/{CODE}/")
+    page.get_by_role("link", name="Run analysis…").click()  # its confirmation page
     page.get_by_role("button", name="Run analysis").click()
     expect(page.get_by_role("button", name="Cancel this run")).to_be_visible()
     shots(page, "coordinator-run-stuck")
@@ -96,6 +97,7 @@ def test_coordinator_cancels_a_stuck_run_and_publishes(
 
     monkeypatch.undo()  # the next run is done at once (eager)
     page.goto(f"{base}/coordinator/{CODE}/")
+    page.get_by_role("link", name="Run analysis…").click()  # its confirmation page
     page.get_by_role("button", name="Run analysis").click()
     expect(page.locator("#run-progress .badge")).to_have_text("Succeeded", timeout=15_000)
     shots(page, "coordinator-run-after-cancel")
@@ -108,6 +110,8 @@ def test_coordinator_cancels_a_stuck_run_and_publishes(
         authorised_by_name="Dana Quality", authorised_by_role="Quality manager"
     )
     page.goto(f"{base}/coordinator/{CODE}/results/")
+    page.get_by_role("link", name="Publish results…").click()
+    expect(page.get_by_text("1 preliminary report is superseded by them")).to_be_visible()
     page.get_by_role("button", name="Publish results").click()
     expect(page.get_by_role("status").filter(has_text="is published")).to_be_visible()
     preliminary.refresh_from_db()

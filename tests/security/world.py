@@ -86,6 +86,8 @@ class World:
             "result": self.result_a.pk,
             "uidb64": "MQ",
             "reset_token": "set-password",
+            "action": "publish",
+            "which": "summary",
         }
 
     def client(self, persona: str) -> Client:
