@@ -147,11 +147,28 @@ def lease(rows: QuerySet[Any], *, pk: int, status: str, heartbeat_at: Any, **fie
     )
 
 
-def send(task: Any, args: tuple[Any, ...], *, task_id: str | None, what: str) -> bool:
-    """Send ``task``; with the broker unreachable, log it (the next sweep tries again)."""
+def send(
+    task: Any,
+    args: tuple[Any, ...],
+    *,
+    task_id: str | None = None,
+    queue: str | None = None,
+    what: str,
+    on_unreachable: Callable[[], object] | None = None,
+) -> bool:
+    """Send ``task`` with ``args`` (under ``task_id``, to ``queue``, when given): whether it
+    was sent.  The one place where the broker being unreachable (kombu's
+    ``OperationalError``, or the socket's ``OSError``) is caught: it is logged with
+    ``what`` (the job the task is for), ``on_unreachable`` runs (the caller's fallback, e.g.
+    failing a new analysis run) and False is returned; the job's row, or the published
+    comparison, is what a sweep later sends again.  Any other error is raised."""
+    options = {name: value for name, value in (("task_id", task_id), ("queue", queue)) if value}
     try:
-        task.apply_async(args, task_id=task_id)
+        task.apply_async(args, **options)
     except (OperationalError, OSError) as exc:
-        log.error("%s not queued again, broker unreachable: %s", what, exc)
+        name = getattr(task, "name", task)
+        log.error("%s: %s not queued, broker unreachable: %s", what, name, exc)
+        if on_unreachable is not None:
+            on_unreachable()
         return False
     return True

@@ -19,7 +19,6 @@ from django.conf import settings
 from django.core.files.base import ContentFile
 from django.db import connections, router, transaction
 from django.db.models import Max
-from kombu.exceptions import OperationalError
 
 import proficiency
 from analysis.bulk import planner_stats_refresh
@@ -38,6 +37,7 @@ from analysis.reports.figures import point_charts_build
 from analysis.reports.render import render_report
 from analysis.reports.tasks import reports_issue_all_task
 from analysis.selectors import current_run
+from common import jobs
 from common.errors import StateConflict, ValidationFailed
 from labs.models import Participant
 from proficiency.models import Comparison, ComparisonStatus
@@ -433,12 +433,11 @@ def reports_enqueue(*, comparison_id: int) -> None:
 
 
 def _send_reports_task(comparison_id: int) -> bool:
-    try:
-        reports_issue_all_task.delay(comparison_id)
-    except (OperationalError, OSError) as exc:
-        log.error("reports of comparison %s not queued yet (broker: %s)", comparison_id, exc)
-        return False
-    return True
+    """Send the fan-out; with the broker unreachable it is logged and the publication
+    stands (``common.jobs.send``): the published comparison still missing reports is what
+    :func:`reports_pending_enqueue` sends again."""
+    what = f"reports of comparison {comparison_id}"
+    return jobs.send(reports_issue_all_task, (comparison_id,), what=what)
 
 
 def reports_missing(comparison: Comparison) -> int:
