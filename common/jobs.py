@@ -1,4 +1,4 @@
-"""Liveness of background jobs (analysis runs, raw-data recomputations).
+"""Liveness of background jobs (analysis runs, raw-data recomputations, report batches).
 
 A task working on a job row writes a heartbeat every ``JOB_HEARTBEAT_SECONDS`` from a
 thread of its own (``heartbeat``), so that a slow computation or a long COPY still shows
@@ -89,8 +89,8 @@ def heartbeat(beat: Callable[[], object], what: str = "job") -> Iterator[None]:
 # --- the claim protocol shared by every job row ---------------------------------------------
 # A job row has ``status`` (pending → running → succeeded | failed), ``heartbeat_at`` and
 # ``claimed_by`` (the Celery id of the task holding it).  Analysis runs and their chunks,
-# and raw recomputations, are claimed, kept alive and re-queued by these functions only
-# (docs/architecture.md §3, docs/lifecycles.md §3 and §5).
+# raw recomputations and report batches are claimed, kept alive and re-queued by these
+# functions only (docs/architecture.md §3, docs/lifecycles.md §3, §4 and §5).
 
 
 def silent(since: str | None = None) -> Q:

@@ -16,7 +16,7 @@ from django.utils import timezone
 from kombu.exceptions import OperationalError
 
 from analysis import services
-from analysis.models import AnalysisRun, Report
+from analysis.models import AnalysisRun, Report, ReportBatch
 from analysis.publication import comparison_publish
 from analysis.reports.services import reports_missing, reports_pending_enqueue
 from analysis.services import analysis_run_start, analysis_sweep
@@ -144,7 +144,7 @@ def test_a_lost_pending_run_is_not_failed_by_the_sweep_with_the_broker_down(
 
 def test_a_publication_stands_when_its_reports_cannot_be_sent(demo, monkeypatch, caplog):
     """The published comparison still missing reports is the outbox: the beat task sends
-    the fan-out once the broker is back."""
+    the fan-out once the broker is back, and the fan-out makes the batch rows then."""
     stand_in_pdf(monkeypatch)
     analysis_run_start(comparison=demo, user=None)
     attempts = broker_down(monkeypatch, "analysis.reports.tasks.reports_issue_all_task")
@@ -153,7 +153,7 @@ def test_a_publication_stands_when_its_reports_cannot_be_sent(demo, monkeypatch,
     assert published.status == "published" and attempts == [(demo.pk,)]
     assert f"reports of comparison {demo.pk}: " in caplog.text
     assert "reports_issue_all_task not queued, broker unreachable" in caplog.text
-    assert not Report.objects.exists()
+    assert not Report.objects.exists() and not ReportBatch.objects.exists()
     assert reports_missing(published) == 13
     assert reports_pending_enqueue() == 0  # still down: nothing sent, nothing lost
     monkeypatch.undo()  # the broker is back
@@ -161,3 +161,4 @@ def test_a_publication_stands_when_its_reports_cannot_be_sent(demo, monkeypatch,
     assert reports_pending_enqueue() == 1
     assert reports_missing(published) == 0
     assert Report.objects.filter(status="final", superseded=False).count() == 13
+    assert set(ReportBatch.objects.values_list("status", flat=True)) == {"done"}
