@@ -39,7 +39,7 @@ def broker_down(monkeypatch, task_path: str) -> list[tuple]:
     attempts, recorded."""
     attempts: list[tuple] = []
 
-    def refused(args, **options):
+    def refused(args, kwargs=None, **options):  # delay() calls apply_async(args, kwargs)
         attempts.append(tuple(args))
         raise OperationalError(REFUSED)
 
@@ -65,6 +65,9 @@ class Task:
         if self.error is not None:
             raise self.error
         self.sent.append((args, options))
+
+    def delay(self, *args):
+        self.apply_async(args)
 
 
 @pytest.mark.parametrize("error", [OperationalError(REFUSED), ConnectionRefusedError(111, "x")])

@@ -108,9 +108,7 @@ def started(comparison, settings, chunk_results, monkeypatch):
         services, "_dispatch", lambda run_id, todo, q: sent.append((run_id, len(list(todo))))
     )
     finish_sent: list[int] = []  # the final step, sent by the chunk that stores the last one
-    monkeypatch.setattr(
-        tasks.analysis_finish_task, "apply_async", lambda args, **kw: finish_sent.extend(args)
-    )
+    monkeypatch.setattr(tasks.analysis_finish_task, "delay", finish_sent.append)
     run = AnalysisRun.objects.create(comparison=comparison, parameters=services._parameters(
         comparison))  # fmt: skip
     assert analysis_run_execute(run_id=run.pk) == "running"

@@ -159,7 +159,7 @@ def test_start_refused_unless_closed_or_analysed(demo, status):
 
 def test_enqueued_only_after_commit(demo, monkeypatch):
     sent: list[object] = []
-    monkeypatch.setattr("analysis.tasks.analysis_run_task.apply_async", lambda a: sent.extend(a))
+    monkeypatch.setattr("analysis.tasks.analysis_run_task.delay", sent.append)
     with transaction.atomic():
         run = analysis_run_start(comparison=demo, user=None)
         assert sent == []

@@ -143,7 +143,7 @@ def test_a_chunk_finishing_while_re_queued_is_stored_once(demo, settings, monkey
         return real(run_, loaded)
 
     monkeypatch.setattr(services, "_compute_checked", stalls_then_swept)
-    monkeypatch.setattr("analysis.tasks.analysis_finish_task.apply_async", lambda *a, **k: None)
+    monkeypatch.setattr("analysis.tasks.analysis_finish_task.delay", lambda run_id: None)
     assert analysis_chunk_execute(run_id=run.pk, index=1, delivery="slow") == "running"
     chunk = AnalysisChunk.objects.get(run=run, index=1)
     assert chunk.done and chunk.attempts == 2 and chunk.claimed_by != "slow"

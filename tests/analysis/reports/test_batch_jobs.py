@@ -253,7 +253,7 @@ def test_pending_batches_whose_messages_were_lost_are_sent_by_the_sweep(publishe
 
 
 def test_a_batch_sent_while_the_broker_is_down_is_sent_by_the_sweep(published, monkeypatch):
-    def refused(args, **options):
+    def refused(args, kwargs=None, **options):
         raise OperationalError("Error 111 connecting to 127.0.0.1:6399. Connection refused.")
 
     with monkeypatch.context() as m:
