@@ -6,6 +6,7 @@ from analysis.models import (
     AssignedValue,
     CompatibilityMatrix,
     Report,
+    ReportBatch,
     ReportDownload,
     Score,
 )
@@ -57,6 +58,15 @@ class ReportAdmin(RecordedByServicesAdmin):
     ]
     list_filter = ["kind", "status", "superseded", "comparison"]
     search_fields = ["comparison__code", "participant__code", "sha256"]
+
+
+@admin.register(ReportBatch)
+class ReportBatchAdmin(RecordedByServicesAdmin):
+    list_display = ["id", "comparison", "run", "report_status", "kind", "index", "status",
+                    "attempts", "heartbeat_at", "finished_at"]  # fmt: skip
+    list_filter = ["status", "kind", "report_status", "comparison"]
+    search_fields = ["comparison__code", "error"]
+    raw_id_fields = ["run"]
 
 
 @admin.register(CompatibilityMatrix)

@@ -1,4 +1,5 @@
-"""Analysis runs and their outputs (assigned values, scores) and issued reports.
+"""Analysis runs and their outputs (assigned values, scores), issued reports and the jobs
+issuing them.
 
 These start minimal; the coordinator and report issues grow them.
 """
@@ -327,6 +328,81 @@ class Report(models.Model):
 
     def __str__(self) -> str:
         return f"{self.get_kind_display()} v{self.version} ({self.comparison.code})"
+
+
+class ReportBatch(models.Model):
+    """A persisted job issuing reports of one run: the summary, or the participant reports
+    of a batch of participants (docs/lifecycles.md §4).
+
+    ``pending → running → done | failed``.  The fan-out creates the rows of a run once
+    (unique per run, report status, kind and index; a second fan-out finds them), and
+    each report task claims its row by the protocol of ``common.jobs``: ``token`` (random,
+    new at every claim), ``claimed_by`` (the Celery id of the task holding it, or of the
+    task last sent for it) and ``heartbeat_at``.  The stale-job sweep re-queues a row
+    pending and not sent, or running and silent, for longer than ``JOB_STALE_SECONDS``.
+    The reports themselves stay idempotent by their own rows, so a batch done twice
+    issues each report once.
+    """
+
+    class Kind(models.TextChoices):
+        SUMMARY = "summary", "Summary report"
+        PARTICIPANTS = "participants", "Participant reports"
+
+    class Status(models.TextChoices):
+        PENDING = "pending", "Pending"
+        RUNNING = "running", "Running"
+        DONE = "done", "Done"
+        FAILED = "failed", "Failed"
+
+    comparison = models.ForeignKey(
+        Comparison, on_delete=models.CASCADE, related_name="report_batches"
+    )
+    run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="report_batches")
+    report_status = models.CharField(
+        max_length=12, choices=Report.Status.choices,
+        help_text="the status of the reports issued: the comparison's when the batch was made",
+    )  # fmt: skip
+    kind = models.CharField(max_length=12, choices=Kind.choices)
+    index = models.PositiveIntegerField(
+        default=0, help_text="the batch's place among the run's (participants in code order)"
+    )
+    participant_ids = models.JSONField(default=list, blank=True)
+    status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
+    attempts = models.PositiveSmallIntegerField(default=0, help_text="claims so far")
+    token = models.CharField(max_length=32, blank=True, help_text="the current claim")
+    claimed_by = models.CharField(
+        max_length=64, blank=True, help_text="task id of the claim, or of the task last sent"
+    )
+    heartbeat_at = models.DateTimeField(
+        null=True, blank=True, help_text="last sign of life of its task (or when it was sent)"
+    )
+    error = models.TextField(blank=True, help_text="why the last attempt failed")
+    report_ids = models.JSONField(default=list, blank=True, help_text="the reports issued")
+    created_at = models.DateTimeField(auto_now_add=True)
+    started_at = models.DateTimeField(null=True, blank=True)
+    finished_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["run_id", "report_status", "-kind", "index"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["run", "report_status", "kind", "index"], name="report_batch_once"
+            ),
+            models.CheckConstraint(
+                condition=Q(kind="participants") | Q(index=0), name="report_batch_one_summary"
+            ),
+        ]
+        indexes = [  # what the sweep reads every minute
+            models.Index(
+                fields=["status"],
+                condition=Q(status__in=["pending", "running"]),
+                name="report_batch_active",
+            ),
+        ]
+
+    def __str__(self) -> str:
+        what = "summary" if self.kind == self.Kind.SUMMARY else f"batch {self.index}"
+        return f"Reports {what} of run {self.run_id} ({self.status})"
 
 
 class ReportDownload(models.Model):

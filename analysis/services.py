@@ -40,7 +40,7 @@ import logging
 import resource
 import secrets
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -51,7 +51,6 @@ from django.db import connection, transaction
 from django.db.models import F, Q, Value
 from django.db.models.functions import Coalesce, Greatest
 from django.utils import timezone
-from kombu.exceptions import OperationalError
 
 import proficiency
 from analysis.bulk import planner_stats_refresh
@@ -114,7 +113,9 @@ def analysis_run_start(
             comparison=locked, parameters=params, code_version=proficiency.__version__,
             created_by=user, heartbeat_at=timezone.now(),
         )  # fmt: skip
-        transaction.on_commit(lambda: _enqueue(analysis_run_task, run.pk))
+        transaction.on_commit(
+            lambda: _enqueue(analysis_run_task, run.pk, on_unreachable=lambda: _fail_unsent(run.pk))
+        )
     return run
 
 
@@ -126,21 +127,26 @@ def _active_run(comparison: Comparison, parameters: dict) -> AnalysisRun | None:
     return next((run for run in active if run.parameters == parameters), None)
 
 
-def _enqueue(task: Any, *args: Any, queue: str | None = None) -> bool:
-    """Send a task of run ``args[0]``; when the broker cannot be reached a new run fails
-    with a clear error (never a run pending for ever), later steps are left to the sweep."""
-    try:
-        task.apply_async(args, queue=queue) if queue else task.delay(*args)
-    except (OperationalError, OSError) as exc:
-        log.error("analysis run %s: %s not queued, broker unreachable: %s", args[0],
-                  task.name, exc)  # fmt: skip
-        if task.name.endswith("analysis_run_task"):
-            AnalysisRun.objects.filter(pk=args[0], status=R.PENDING).update(
-                status=R.FAILED, finished_at=timezone.now(),
-                error="The task queue (broker) could not be reached; start the run again.",
-            )  # fmt: skip
-        return False
-    return True
+def _enqueue(
+    task: Any, *args: Any, queue: str | None = None,
+    on_unreachable: Callable[[], object] | None = None,
+) -> bool:  # fmt: skip
+    """Send a task of run ``args[0]`` (``common.jobs.send``); when the broker cannot be
+    reached, ``on_unreachable`` runs (a new run: :func:`_fail_unsent`), and a later step is
+    left to the sweep."""
+    return jobs.send(task, args, queue=queue, what=f"analysis run {args[0]}",
+                     on_unreachable=on_unreachable)  # fmt: skip
+
+
+BROKER_UNREACHABLE = "The task queue (broker) could not be reached; start the run again."
+
+
+def _fail_unsent(run_id: int) -> None:
+    """A new run whose task could not be sent fails with a clear error: never a run
+    pending for ever (a coordinator starts it again)."""
+    AnalysisRun.objects.filter(pk=run_id, status=R.PENDING).update(
+        status=R.FAILED, finished_at=timezone.now(), error=BROKER_UNREACHABLE
+    )
 
 
 def _parameters(c: Comparison) -> dict[str, Any]:

@@ -71,10 +71,12 @@ def reports_pending_task() -> int:
 
 @shared_task(soft_time_limit=50, time_limit=60)
 def jobs_sweep_task() -> dict[str, int]:
-    """Celery beat (``JOB_SWEEP_SECONDS``): re-queue analysis runs and raw-data
-    recomputations whose worker was lost (heartbeat older than ``JOB_STALE_SECONDS``)."""
-    # in the body: the service module imports this one to enqueue the task (a cycle)
+    """Celery beat (``JOB_SWEEP_SECONDS``): re-queue analysis runs, raw-data recomputations
+    and report batches whose worker was lost (heartbeat older than ``JOB_STALE_SECONDS``)
+    or whose message was; the counts of tasks sent."""
+    # in the body: the service modules import this one to enqueue the task (a cycle)
+    from analysis.reports.services import report_batches_sweep
     from analysis.services import analysis_sweep
     from labs.raw_services import raw_sweep
 
-    return analysis_sweep() | {"raw": raw_sweep()}
+    return analysis_sweep() | {"raw": raw_sweep(), "reports": report_batches_sweep()}

@@ -1,4 +1,4 @@
-"""Liveness of background jobs (analysis runs, raw-data recomputations).
+"""Liveness of background jobs (analysis runs, raw-data recomputations, report batches).
 
 A task working on a job row writes a heartbeat every ``JOB_HEARTBEAT_SECONDS`` from a
 thread of its own (``heartbeat``), so that a slow computation or a long COPY still shows
@@ -89,8 +89,8 @@ def heartbeat(beat: Callable[[], object], what: str = "job") -> Iterator[None]:
 # --- the claim protocol shared by every job row ---------------------------------------------
 # A job row has ``status`` (pending → running → succeeded | failed), ``heartbeat_at`` and
 # ``claimed_by`` (the Celery id of the task holding it).  Analysis runs and their chunks,
-# and raw recomputations, are claimed, kept alive and re-queued by these functions only
-# (docs/architecture.md §3, docs/lifecycles.md §3 and §5).
+# raw recomputations and report batches are claimed, kept alive and re-queued by these
+# functions only (docs/architecture.md §3, docs/lifecycles.md §3, §4 and §5).
 
 
 def silent(since: str | None = None) -> Q:
@@ -147,11 +147,28 @@ def lease(rows: QuerySet[Any], *, pk: int, status: str, heartbeat_at: Any, **fie
     )
 
 
-def send(task: Any, args: tuple[Any, ...], *, task_id: str | None, what: str) -> bool:
-    """Send ``task``; with the broker unreachable, log it (the next sweep tries again)."""
-    try:
-        task.apply_async(args, task_id=task_id)
+def send(
+    task: Any,
+    args: tuple[Any, ...],
+    *,
+    task_id: str | None = None,
+    queue: str | None = None,
+    what: str,
+    on_unreachable: Callable[[], object] | None = None,
+) -> bool:
+    """Send ``task`` with ``args`` (under ``task_id``, to ``queue``, when given): whether it
+    was sent.  The one place where the broker being unreachable (kombu's
+    ``OperationalError``, or the socket's ``OSError``) is caught: it is logged with
+    ``what`` (the job the task is for), ``on_unreachable`` runs (the caller's fallback, e.g.
+    failing a new analysis run) and False is returned; the job's row, or the published
+    comparison, is what a sweep later sends again.  Any other error is raised."""
+    options = {name: value for name, value in (("task_id", task_id), ("queue", queue)) if value}
+    try:  # delay() with nothing to set: what these callers always called (and tests stub)
+        task.apply_async(args, **options) if options else task.delay(*args)
     except (OperationalError, OSError) as exc:
-        log.error("%s not queued again, broker unreachable: %s", what, exc)
+        name = getattr(task, "name", task)
+        log.error("%s: %s not queued, broker unreachable: %s", what, name, exc)
+        if on_unreachable is not None:
+            on_unreachable()
         return False
     return True

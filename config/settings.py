@@ -188,9 +188,9 @@ CELERY_TASK_SOFT_TIME_LIMIT = env.int("CELERY_TASK_SOFT_TIME_LIMIT", default=25 
 CELERY_WORKER_PREFETCH_MULTIPLIER = 1
 ANALYSIS_CHUNK_RESULTS = env.int("ANALYSIS_CHUNK_RESULTS", default=100_000)  # per chunk task
 CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
-# Lost jobs (README, "Lost workers"): a task working on an analysis run or a raw-data
-# recomputation writes a heartbeat every JOB_HEARTBEAT_SECONDS; a job silent for
-# JOB_STALE_SECONDS is re-queued by the sweep (Celery beat, every JOB_SWEEP_SECONDS).
+# Lost jobs (README, "Lost workers"): a task working on an analysis run, a raw-data
+# recomputation or a report batch writes a heartbeat every JOB_HEARTBEAT_SECONDS; a job
+# silent for JOB_STALE_SECONDS is re-queued by the sweep (Celery beat, every JOB_SWEEP_SECONDS).
 JOB_HEARTBEAT_SECONDS = env.float("JOB_HEARTBEAT_SECONDS", default=30.0)
 JOB_STALE_SECONDS = max(env.float("JOB_STALE_SECONDS", default=300.0), 3 * JOB_HEARTBEAT_SECONDS)
 JOB_SWEEP_SECONDS = env.float("JOB_SWEEP_SECONDS", default=60.0)
@@ -211,7 +211,7 @@ CELERY_BEAT_SCHEDULE = {
     },
     # reports of a publication whose enqueue was lost (broker down) are sent again
     "reports-pending": {"task": "analysis.tasks.reports_pending_task", "schedule": 300.0},
-    # analysis runs and raw recomputations whose worker was lost are re-queued
+    # analysis runs, raw recomputations and report batches whose worker was lost are re-queued
     "jobs-sweep": {"task": "analysis.tasks.jobs_sweep_task", "schedule": JOB_SWEEP_SECONDS},
     # deadline reminders (Comparison.reminder_days; once per participant and day count), and
     # notices whose e-mail was not sent (broker down) sent again

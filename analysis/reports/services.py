@@ -6,24 +6,32 @@ issued for (``Report.status``: preliminary while analysed, final once published,
 under the issuing lock); publication supersedes every preliminary report in its own
 transaction and the report tasks then issue the final ones, so a preliminary report is
 never the current report of a published comparison.
+
+The fan-out's tasks work under job rows (``ReportBatch``: the summary, and each batch of
+participants), claimed, kept alive, ended and re-queued by the protocol of ``common.jobs``
+(docs/lifecycles.md §4).
 """
 
 from __future__ import annotations
 
 import hashlib
 import logging
+import secrets
 from collections.abc import Sequence
+from functools import partial
+from typing import Any
 
 from auditlog.context import set_actor
+from celery import uuid
 from django.conf import settings
 from django.core.files.base import ContentFile
 from django.db import connections, router, transaction
-from django.db.models import Max
-from kombu.exceptions import OperationalError
+from django.db.models import F, Max
+from django.utils import timezone
 
 import proficiency
 from analysis.bulk import planner_stats_refresh
-from analysis.models import AnalysisRun, Report
+from analysis.models import AnalysisRun, Report, ReportBatch
 from analysis.reports.assemble import (
     ComparisonCommon,
     RunContext,
@@ -36,9 +44,15 @@ from analysis.reports.assemble import (
 from analysis.reports.data import ResultRow, ScoreRow
 from analysis.reports.figures import point_charts_build
 from analysis.reports.render import render_report
-from analysis.reports.tasks import reports_issue_all_task
+from analysis.reports.tasks import (
+    report_issue_batch_task,
+    report_issue_task,
+    reports_issue_all_task,
+)
 from analysis.selectors import current_run
-from common.errors import StateConflict, ValidationFailed
+from common import jobs
+from common.errors import ApplicationError, StateConflict, ValidationFailed
+from common.jobs import heartbeat
 from labs.models import Participant
 from proficiency.models import Comparison, ComparisonStatus
 
@@ -46,6 +60,7 @@ REPORTABLE = (ComparisonStatus.ANALYSED, ComparisonStatus.PUBLISHED)
 MAX_TEXT = 20_000
 MAX_NAME = 120
 log = logging.getLogger(__name__)
+B = ReportBatch.Status
 
 
 def _check_notes(
@@ -405,11 +420,19 @@ def report_batches(comparison: Comparison, size: int | None = None) -> tuple[int
     ``size`` (default ``settings.REPORTS_BATCH_SIZE``, 25): one task each.  Refreshes
     the planner's statistics of the tables the batches read
     (:func:`analysis.bulk.planner_stats_refresh`)."""
-    step: int = size if size else getattr(settings, "REPORTS_BATCH_SIZE", 25)
+    step = _batch_size(size)
     run = _reportable_run(comparison)
     planner_stats_refresh()
     ids = list(comparison.participants.order_by("code").values_list("pk", flat=True))
-    return run.pk, [ids[i : i + step] for i in range(0, len(ids), step)]
+    return run.pk, _in_batches(ids, step)
+
+
+def _batch_size(size: int | None) -> int:
+    return size if size else int(getattr(settings, "REPORTS_BATCH_SIZE", 25))
+
+
+def _in_batches(ids: Sequence[int], step: int) -> list[list[int]]:
+    return [list(ids[i : i + step]) for i in range(0, len(ids), step)]
 
 
 def reports_issue_all(*, comparison: Comparison) -> list[Report]:
@@ -425,6 +448,159 @@ def reports_issue_all(*, comparison: Comparison) -> list[Report]:
     return [summary, *(found[pk] for pk in ids)]
 
 
+# --- report batches: the fan-out's job rows (docs/lifecycles.md §4) ----------------------
+
+
+def report_batches_create(*, comparison: Comparison, size: int | None = None) -> list[ReportBatch]:
+    """The job rows issuing the current run's reports for the comparison's status: the
+    summary, then the participants in code order in batches of ``size``
+    (:func:`report_batches`); every row of that run and status, the summary first.
+
+    Made once: a second fan-out, even at the same time, finds them (unique per run, report
+    status, kind and index, inserted with ``ON CONFLICT DO NOTHING``); only participants in
+    no batch yet (added since, or batched with another size) get new batches after the
+    last one."""
+    run_id, batches = report_batches(comparison, size)
+    status = report_status(comparison)
+    rows = ReportBatch.objects.filter(run_id=run_id, report_status=status)
+    known = list(
+        rows.filter(kind=ReportBatch.Kind.PARTICIPANTS).values_list("index", "participant_ids")
+    )
+    first = 0
+    if known:
+        covered = {pk for _, ids in known for pk in ids}
+        left = [pk for batch in batches for pk in batch if pk not in covered]
+        batches, first = _in_batches(left, _batch_size(size)), 1 + max(i for i, _ in known)
+    made = {"comparison_id": comparison.pk, "run_id": run_id, "report_status": status}
+    summary = ReportBatch(**made, kind=ReportBatch.Kind.SUMMARY)
+    ReportBatch.objects.bulk_create(
+        [summary, *(ReportBatch(**made, kind=ReportBatch.Kind.PARTICIPANTS, index=first + i,
+                                participant_ids=ids) for i, ids in enumerate(batches))],
+        ignore_conflicts=True,
+    )  # fmt: skip
+    return list(rows.order_by("-kind", "index"))
+
+
+def report_batches_send(*, comparison: Comparison) -> int:
+    """The fan-out, ``reports_issue_all_task``'s body: the run's batch rows
+    (:func:`report_batches_create`) and a task for each that needs one: pending and not
+    sent within ``JOB_STALE_SECONDS``, failed, or done but missing a report since (one
+    deleted); a running row is left to its task (and to the sweep if it goes silent).  A
+    failed or incomplete row goes back to pending first, keeping its attempts and error.
+
+    Safe twice, even at once: a row is reset and sent by conditional UPDATEs, so a
+    fan-out delivered twice sends each task once.  The number of reports the run needs."""
+    rows = report_batches_create(comparison=comparison)
+    issued = set(
+        Report.objects.filter(
+            run_id=rows[0].run_id, status=rows[0].report_status, superseded=False
+        ).values_list("participant_id", flat=True)
+    )  # None: the summary
+    for row in rows:
+        wanted = {None} if row.kind == ReportBatch.Kind.SUMMARY else set(row.participant_ids)
+        if row.status == B.RUNNING or (row.status == B.DONE and wanted <= issued):
+            continue
+        if row.status in (B.DONE, B.FAILED):
+            again = ReportBatch.objects.filter(pk=row.pk, status=row.status)
+            if not again.update(status=B.PENDING, token="", heartbeat_at=None):
+                continue  # reset or claimed by another fan-out meanwhile
+            row.status, row.heartbeat_at = B.PENDING, None
+        if row.heartbeat_at is None or row.heartbeat_at < jobs.stale_before():
+            _batch_send(row)
+    return 1 + sum(len(r.participant_ids) for r in rows if r.kind == ReportBatch.Kind.PARTICIPANTS)
+
+
+def _batch_send(row: ReportBatch) -> bool:
+    """Send the task of ``row`` under a new Celery id, unless another fan-out, sweep or
+    task moved the row's heartbeat since it was read (``common.jobs.lease``): the id is
+    written as ``claimed_by``, so a running row's task takes the claim over.  Whether
+    sent; with the broker unreachable the row waits for the sweep."""
+    task_id = uuid()
+    if not jobs.lease(ReportBatch.objects.all(), pk=row.pk, status=row.status,
+                      heartbeat_at=row.heartbeat_at, claimed_by=task_id):  # fmt: skip
+        return False
+    task: Any
+    args: tuple[Any, ...]
+    if row.kind == ReportBatch.Kind.SUMMARY:
+        task, args = report_issue_task, (row.run_id, Report.Kind.SUMMARY, None, row.pk)
+    else:
+        task, args = report_issue_batch_task, (row.run_id, row.participant_ids, row.pk)
+    what = f"report batch {row.pk} (run {row.run_id}, {row.kind} {row.index})"
+    return jobs.send(task, args, task_id=task_id, what=what)
+
+
+def _batch_claim(batch_id: int, delivery: str) -> str | None:
+    """pending → running; or take over a running row whose heartbeat is stale, or that
+    this very task (``delivery``: its Celery id, redelivered, or the one the sweep sent)
+    had claimed (``common.jobs.claim``).  The claim's new token, or None."""
+    token = secrets.token_hex(16)
+    claim = {"token": token, "started_at": timezone.now(), "attempts": F("attempts") + 1}
+    rows = ReportBatch.objects.filter(pk=batch_id)
+    fresh = {"status": B.RUNNING, "error": "", "report_ids": [], **claim}
+    return token if jobs.claim(rows, delivery=delivery, fresh=fresh, takeover=claim) else None
+
+
+def report_batch_execute(*, batch_id: int, delivery: str = "") -> list[int]:
+    """The body of a report task sent with its batch row: claim row ``batch_id`` and issue
+    its reports (the summary, :func:`report_issue_once`, or the batch's participant
+    reports, :func:`report_issue_batch`), its heartbeat beating while they render; then
+    the row is done with the ids of its reports, or failed with the error (whatever the
+    error: a row is never left running by a task that ended).  ``delivery``: this task's
+    Celery id.  A row done, failed or held by a live task is left as it is.
+
+    The ids of the batch's reports (none when it failed or another task holds it)."""
+    token = _batch_claim(batch_id, delivery)
+    row = ReportBatch.objects.filter(pk=batch_id).first()
+    if row is None:  # deleted with its run or comparison
+        return []
+    if token is None:  # done, failed, or held by a live task
+        return list(row.report_ids) if row.status == B.DONE else []
+    beat = partial(jobs.beat, ReportBatch, batch_id, status=B.RUNNING, token=token)
+    with heartbeat(beat, f"report batch {batch_id}"):
+        outcome = _batch_outcome(row)
+    now = timezone.now()
+    ReportBatch.objects.filter(pk=batch_id, status=B.RUNNING, token=token).update(
+        **outcome, finished_at=now, heartbeat_at=now
+    )  # not if taken over meanwhile: the task that took it over ends it
+    return list(outcome["report_ids"])
+
+
+def _batch_outcome(row: ReportBatch) -> dict[str, Any]:
+    """Issue the row's reports: the fields of its end, done or failed."""
+    try:
+        if row.kind == ReportBatch.Kind.SUMMARY:
+            summary = report_issue_once(run_id=row.run_id, kind=Report.Kind.SUMMARY,
+                                        participant_id=None)  # fmt: skip
+            ids = [summary.pk] if summary is not None else []
+        else:
+            ids = report_issue_batch(run_id=row.run_id, participant_ids=row.participant_ids)
+    except ApplicationError as exc:
+        return {"status": B.FAILED, "error": exc.message, "report_ids": []}
+    except Exception as exc:  # any other error is shown too, never a row stuck running
+        log.exception("report batch %s of run %s failed", row.pk, row.run_id)
+        return {"status": B.FAILED, "error": f"{type(exc).__name__}: {exc}", "report_ids": []}
+    return {"status": B.DONE, "error": "", "report_ids": ids}  # []: the run is no longer current
+
+
+def report_batches_sweep() -> int:
+    """Celery beat (``jobs_sweep_task``): send again the report batches silent for
+    ``JOB_STALE_SECONDS``: pending ones never sent or whose message was lost (not claimed
+    since they were sent), running ones whose worker was lost (no heartbeat); the task
+    sent takes the claim over.  Each send is decided by a conditional UPDATE, so two
+    sweeps at once send it once.  A failed batch is not retried here: the next fan-out of
+    its comparison retries it (:func:`report_batches_send`; for a published comparison
+    still missing reports, ``reports_pending_task``).  The number of tasks sent."""
+    silent = ReportBatch.objects.filter(
+        jobs.silent("created_at"), status__in=(B.PENDING, B.RUNNING)
+    ).order_by("pk")
+    sent = 0
+    for row in silent:
+        log.warning("report batch %s of run %s silent since %s: queued again", row.pk,
+                    row.run_id, row.heartbeat_at or row.created_at)  # fmt: skip
+        sent += _batch_send(row)
+    return sent
+
+
 def reports_enqueue(*, comparison_id: int) -> None:
     """After commit: one Celery task per report, as a group.  When the broker cannot be
     reached the publication stands and :func:`reports_pending_enqueue` (Celery beat)
@@ -433,12 +609,11 @@ def reports_enqueue(*, comparison_id: int) -> None:
 
 
 def _send_reports_task(comparison_id: int) -> bool:
-    try:
-        reports_issue_all_task.delay(comparison_id)
-    except (OperationalError, OSError) as exc:
-        log.error("reports of comparison %s not queued yet (broker: %s)", comparison_id, exc)
-        return False
-    return True
+    """Send the fan-out; with the broker unreachable it is logged and the publication
+    stands (``common.jobs.send``): the published comparison still missing reports is what
+    :func:`reports_pending_enqueue` sends again."""
+    what = f"reports of comparison {comparison_id}"
+    return jobs.send(reports_issue_all_task, (comparison_id,), what=what)
 
 
 def reports_missing(comparison: Comparison) -> int:
@@ -462,8 +637,10 @@ def reports_preliminary_supersede(*, comparison: Comparison) -> int:
 
 
 def reports_pending_enqueue() -> int:
-    """Beat task body: send the report task of every published comparison that still
-    misses reports (lost enqueue, broker down at publication); the number sent.
-    Issuing is idempotent, so a comparison whose reports are still rendering is safe."""
+    """Beat task body: send the fan-out of every published comparison that still misses
+    reports (lost enqueue, broker down at publication, a failed batch); the number sent.
+    The fan-out makes the batch rows if there are none yet and sends only the batches to
+    do (:func:`report_batches_send`), so a comparison whose reports are still rendering
+    is safe."""
     pending = Comparison.objects.filter(status=ComparisonStatus.PUBLISHED).order_by("pk")
     return sum(_send_reports_task(c.pk) for c in pending if reports_missing(c) > 0)

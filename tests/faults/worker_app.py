@@ -5,7 +5,9 @@ inside the single task of a one-chunk run), after its
 assigned values and scores are written and before they commit, and writes the file
 ``FAULT_MARKER`` (the pid of the process that hangs) so that the test knows when to
 SIGKILL it, in the solo pool's process or a prefork child; with ``FAULT_READY`` it
-writes that file when it is ready to consume.  Nothing of this is in
+writes that file when it is ready to consume.  With ``FAULT_HANG_REPORT=<participant
+code>`` it hangs likewise while rendering that participant's report, inside the report's
+transaction.  Nothing of this is in
 the project's code: the worker is started with ``-A tests.faults.worker_app``.
 """
 
@@ -42,6 +44,7 @@ def _in_child(**_: object) -> None:
 
 
 def _install_hang() -> None:
+    _install_report_hang()
     import analysis.services as services
 
     hang = os.environ.get("FAULT_HANG_CHUNK")  # a chunk index, or "run": the single task
@@ -65,3 +68,21 @@ def _install_hang() -> None:
     if not getattr(services.write_scores, "hangs", False):
         write_scores.hangs = True  # type: ignore[attr-defined]
         services.write_scores = write_scores
+
+
+def _install_report_hang() -> None:
+    import analysis.reports.services as services
+
+    code = os.environ.get("FAULT_HANG_REPORT")
+    if not code or getattr(services.render_report, "hangs", False):
+        return
+    original = services.render_report
+
+    def render_report(data: Any) -> bytes:
+        if data.own_code == code:
+            Path(os.environ["FAULT_MARKER"]).write_text(f"{time.time()} {os.getpid()}")
+            time.sleep(600)  # killed by the test long before
+        return original(data)
+
+    render_report.hangs = True  # type: ignore[attr-defined]
+    services.render_report = render_report
