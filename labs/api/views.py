@@ -236,15 +236,18 @@ class XLSXRenderer(CSVRenderer):
     },
 )
 class ResultsTemplate(ApiView):
-    """The results table (docs/interfaces.md §1) pre-filled with the measurement points; fill in
-    `sensitivity` and `expanded_uncertainty` and upload it."""
+    """The results table (docs/interfaces.md §1) pre-filled with the measurement points (a
+    participant's: those of its scope); fill in `sensitivity` and `expanded_uncertainty` and
+    upload it."""
 
     renderer_classes = [CSVRenderer, XLSXRenderer]
 
     def get(self, request: Request, code: str) -> Response:
-        comparison = self.access(code).comparison
+        access = self.access(code)
+        comparison = access.comparison
         fmt = request.accepted_renderer.format
-        body = results_template(comparison, format=fmt)
+        # a participant's template lists its scope's points; a coordinator's, every point
+        body = results_template(comparison, format=fmt, participant=access.participant)
         filename = f"{comparison.code}-results-template.{fmt}"
         return Response(body, headers={"Content-Disposition": f'attachment; filename="{filename}"'})
 

@@ -13,7 +13,8 @@ from django.utils.html import format_html
 
 from common.points import format_number, point_label
 from labs.access import managed_labs
-from labs.models import Laboratory, Submission
+from labs.models import Laboratory, Participant, Submission
+from labs.selectors import scope_text
 from proficiency.models import ComparisonStatus, MeasurementPoint
 from proficiency.protocols import BenchPlan
 
@@ -91,3 +92,9 @@ def nums(values: Iterable[float]) -> str:
 def amplitude_rows(plan: BenchPlan) -> list[tuple[str, str, float]]:
     """A bench plan's expected excitation as (frequency, direction, amplitude) rows."""
     return [(format_number(f), d, a) for (f, d), a in sorted(plan.amplitudes.items())]
+
+
+@register.filter
+def scope(participant: Participant) -> str:
+    """A participant's scope in words (``labs.selectors.scope_text``)."""
+    return scope_text(participant)
