@@ -443,3 +443,52 @@ def test_a_participant_cannot_change_its_scope(world):
     response = client.put(f"{API}/participants/{world.linear.code}/scope/", {}, format="json")
     assert response.status_code == 403
     assert Participant.objects.get(pk=world.linear.pk).scope_benches == ["linear"]
+
+
+# --- the coordinator's import_results ---------------------------------------------------------
+
+
+def import_table(world, recs):
+    import io
+
+    from labs.bulk_import import results_import
+    from labs.importers import write_table
+
+    return results_import(
+        comparison=world.comparison, file=io.BytesIO(write_table(recs)), user=world.coordinator
+    )
+
+
+def with_lab(participant, recs):
+    return [{"lab": participant.code, **r} for r in recs]
+
+
+def test_import_results_needs_each_scope_only(world):
+    recs = with_lab(world.linear, records(participant_points(world.linear)))
+    recs += with_lab(world.curvilinear, records(participant_points(world.curvilinear)))
+    summary = import_table(world, recs)
+    assert (summary.participants, summary.rows, summary.new_versions) == (2, 6, 2)
+    assert Submission.objects.get(participant=world.linear).results.count() == 4
+    assert Submission.objects.get(participant=world.curvilinear).results.count() == 2
+
+
+def test_import_results_refuses_a_row_outside_a_scope_and_lists_missing_scope_points(world):
+    from labs.bulk_import import ImportRefused
+
+    outside = world.comparison.measurement_points.get(
+        device=world.mems1, bench="linear", frequency_hz=5
+    )
+    recs = with_lab(world.curvilinear, records(participant_points(world.curvilinear))[:1])
+    with pytest.raises(ImportRefused) as err:
+        import_table(world, recs + with_lab(world.curvilinear, records([outside])))
+    assert [str(e) for e in err.value.row_errors] == [
+        f"row 3: MEMS 1, X, 5 Hz, linear vertical is not in the scope of {world.curvilinear.code} "
+        "(device MEMS 2; bench curvilinear)"
+    ]
+    with pytest.raises(ImportRefused) as err:
+        import_table(world, recs)
+    assert [str(e) for e in err.value.row_errors] == [
+        f"column lab: {world.curvilinear.code}: missing result for MEMS 2, X, 10 Hz, curvilinear "
+        "tangential; a submission needs a result for every measurement point of its scope"
+    ]
+    assert not Submission.objects.filter(participant__comparison=world.comparison).exists()
