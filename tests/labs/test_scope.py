@@ -492,3 +492,60 @@ def test_import_results_refuses_a_row_outside_a_scope_and_lists_missing_scope_po
         "tangential; a submission needs a result for every measurement point of its scope"
     ]
     assert not Submission.objects.filter(participant__comparison=world.comparison).exists()
+
+
+# --- more of the pages and the API's refusals -------------------------------------------------
+
+
+def test_xlsx_upload_outside_the_scope_is_a_row_error(client, world):
+    import io
+
+    import openpyxl
+
+    workbook = openpyxl.Workbook()
+    sheet = workbook.active
+    sheet.append(HEADER.strip().split(","))
+    for r in records(participant_points(world.curvilinear)):
+        sheet.append(list(r.values()))
+    sheet.append(["MEMS 1", "X", 10, "curvilinear", "tangential", 420.5, 8.4])
+    buffer = io.BytesIO()
+    workbook.save(buffer)
+    client.force_login(world.staff(world.curvilinear))
+    response = client.post(
+        reverse("labs:upload", args=[CODE]),
+        {"file": SimpleUploadedFile("r.xlsx", buffer.getvalue()), "action": "submit"},
+    )
+    assert response.status_code == 200
+    assert (
+        '<td data-label="Row" class="text-nowrap">row 4</td>\n'
+        '        <td data-label="Column">—</td>\n'
+        '        <td data-label="Problem">MEMS 1, X, 10 Hz, curvilinear tangential is not in your '
+        "scope (device MEMS 2; bench curvilinear)</td>"
+    ) in visible(response)
+    assert not Submission.objects.filter(participant=world.curvilinear).exists()
+
+
+def test_coordinator_pages_show_the_scopes(client, world):
+    client.force_login(world.coordinator)
+    body = visible(client.get(reverse("coordinator:comparison", args=[CODE])))
+    scope_url = reverse("coordinator:scope", args=[CODE, world.curvilinear.code])
+    assert f'<a href="{scope_url}">Device MEMS 2; bench curvilinear<span' in body
+    review = visible(client.get(reverse("coordinator:review", args=[CODE])))
+    assert '0 / 4 <span class="small text-body-secondary">(scope: bench linear)</span>' in review
+    invite = visible(client.get(reverse("coordinator:invite", args=[CODE])))
+    for name in ("laboratories", "devices", "benches", "axes", "frequencies_hz"):
+        assert f'name="{name}"' in invite
+
+
+def test_scope_api_refuses_bad_values_and_changes_nothing(world):
+    client = APIClient()
+    client.force_authenticate(world.coordinator)
+    url = f"{API}/participants/{world.linear.code}/scope/"
+    response = client.put(url, {"benches": ["linear"], "frequencies_hz": [7.5]}, format="json")
+    assert response.status_code == 400
+    assert response.json()["errors"] == [
+        {"row": None, "field": "frequencies_hz", "message": f"7.5 Hz is not a frequency of {CODE}"}
+    ]
+    assert client.get(f"{API}/participants/L000/scope/").status_code == 404
+    stored = Participant.objects.get(pk=world.linear.pk)
+    assert (stored.scope_benches, stored.scope_frequencies_hz) == (["linear"], [])
