@@ -11,6 +11,7 @@ from django.db.models import (
     Case,
     Count,
     Exists,
+    Expression,
     Max,
     OuterRef,
     Q,
@@ -147,6 +148,18 @@ def scope_levels_filter(
     return q
 
 
+def scope_flag(participant: Participant | None, *, default: bool | None = None) -> Expression:
+    """An annotation on measurement points: whether each is in ``participant``'s scope;
+    ``default`` for every point without a participant."""
+    if participant is None:
+        return Value(default, output_field=BooleanField())
+    return Case(
+        When(scope_filter(participant), then=Value(True)),
+        default=Value(False),
+        output_field=BooleanField(),
+    )
+
+
 def participant_points(participant: Participant) -> QuerySet[MeasurementPoint]:
     """The measurement points ``participant`` reports, in the comparison's point order:
     those of its scope, every point of the comparison when it has none. The one answer
@@ -206,20 +219,11 @@ def comparison_table(
     With ``participant``, the context carries its scope (rows outside it are refused, a
     complete table needs its points only); a participant whose scope leaves no point out
     gets the whole comparison's context, with no further query."""
-    in_scope = (
-        Value(True)
-        if participant is None
-        else Case(
-            When(scope_filter(participant), then=Value(True)),
-            default=Value(False),
-            output_field=BooleanField(),
-        )
-    )
     rows = (
         comparison.measurement_points.order_by(
             "device__name", "bench", "direction", "axis", "frequency_hz", "pk"
         )
-        .annotate(in_scope=in_scope)
+        .annotate(in_scope=scope_flag(participant, default=True))
         .values_list("pk", "device__unit", *POINT_LOOKUPS, "amplitude_m_s2", "in_scope")
     )
     keys: list[PointKey] = []

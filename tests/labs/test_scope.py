@@ -549,3 +549,21 @@ def test_scope_api_refuses_bad_values_and_changes_nothing(world):
     assert client.get(f"{API}/participants/L000/scope/").status_code == 404
     stored = Participant.objects.get(pk=world.linear.pk)
     assert (stored.scope_benches, stored.scope_frequencies_hz) == (["linear"], [])
+
+
+def test_measurands_say_which_points_are_in_the_callers_scope(world):
+    response = world.api(world.curvilinear).get(f"{API}/measurands/")
+    assert response.status_code == 200
+    flags = [(m["device"], m["bench"], m["frequency_hz"], m["in_scope"])
+             for m in response.json()["results"]]  # fmt: skip
+    assert [f for f in flags if f[3]] == [
+        ("MEMS 2", "curvilinear", 5.0, True),
+        ("MEMS 2", "curvilinear", 10.0, True),
+    ]
+    assert len(flags) == 8
+    full = world.api(world.full).get(f"{API}/measurands/").json()["results"]
+    assert [m["in_scope"] for m in full] == [True] * 8
+    coordinator = APIClient()
+    coordinator.force_authenticate(world.coordinator)
+    answer = coordinator.get(f"{API}/measurands/").json()["results"]
+    assert [m["in_scope"] for m in answer] == [None] * 8
