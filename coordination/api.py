@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from django.shortcuts import get_object_or_404
 from django.urls import path
 from drf_spectacular.utils import extend_schema, extend_schema_field
 from rest_framework import serializers, status
@@ -17,8 +18,9 @@ from common.api import valid_data
 from common.errors import ValidationFailed
 from labs.access import require_coordinator
 from labs.api.views import ApiView
-from labs.models import Laboratory
-from labs.services import participants_invite
+from labs.models import Laboratory, Participant
+from labs.selectors import participant_points, scope_text
+from labs.services import Scope, participant_scope_set, participants_invite
 from proficiency import protocols
 from proficiency.models import Device
 from proficiency.services import (
@@ -95,8 +97,51 @@ class PointsGenerate(ApiView):
         return Response(body, status=status.HTTP_201_CREATED)
 
 
+class ScopeSerializer(serializers.Serializer):
+    """A participant's scope (docs/domain.md §10); an empty or absent list allows every value."""
+
+    devices = serializers.ListField(child=serializers.CharField(), required=False, default=list)
+    benches = serializers.ListField(child=serializers.CharField(), required=False, default=list)
+    axes = serializers.ListField(child=serializers.CharField(), required=False, default=list)
+    frequencies_hz = serializers.ListField(
+        child=serializers.FloatField(), required=False, default=list
+    )
+
+    def scope(self) -> Scope:
+        data = valid_data(self)
+        return Scope(
+            devices=data["devices"],
+            benches=data["benches"],
+            axes=data["axes"],
+            frequencies_hz=data["frequencies_hz"],
+        )
+
+
+class ScopeOutSerializer(serializers.Serializer):
+    participant = serializers.CharField()
+    devices = serializers.ListField(child=serializers.CharField())
+    benches = serializers.ListField(child=serializers.CharField())
+    axes = serializers.ListField(child=serializers.CharField())
+    frequencies_hz = serializers.ListField(child=serializers.FloatField())
+    description = serializers.CharField()
+    n_measurement_points = serializers.IntegerField()
+
+
+def scope_body(participant: Participant) -> dict[str, Any]:
+    return {
+        "participant": participant.code,
+        "devices": sorted(d.name for d in participant.scope_devices.all()),
+        "benches": list(participant.scope_benches),
+        "axes": list(participant.scope_axes),
+        "frequencies_hz": list(participant.scope_frequencies_hz),
+        "description": scope_text(participant),
+        "n_measurement_points": participant_points(participant).count(),
+    }
+
+
 class InviteSerializer(serializers.Serializer):
     laboratories = serializers.ListField(child=serializers.CharField(), min_length=1)
+    scope = ScopeSerializer(required=False)
 
 
 class Invite(ApiView):
@@ -106,7 +151,9 @@ class Invite(ApiView):
     def post(self, request: Request, code: str) -> Response:
         access = self.access(code)
         require_coordinator(access)
-        wanted = valid_data(InviteSerializer(data=request.data))["laboratories"]
+        data = valid_data(InviteSerializer(data=request.data))
+        wanted = data["laboratories"]
+        scope = data.get("scope")
         # ids are plain ASCII digits that fit a bigint ("¹".isdigit() is True in Python)
         ids = [int(w) for w in wanted if w.isascii() and w.isdigit() and len(w) <= 18]
         labs = {str(lab.pk): lab for lab in Laboratory.objects.filter(pk__in=ids)} | {
@@ -116,10 +163,41 @@ class Invite(ApiView):
         if unknown:
             raise ValidationFailed(f"Unknown laboratories: {', '.join(unknown)}.")
         added = participants_invite(
-            comparison=access.comparison, laboratories=[labs[w] for w in wanted]
+            comparison=access.comparison,
+            laboratories=[labs[w] for w in wanted],
+            scope=None if scope is None else Scope(**scope),
         )
-        body = {"participants": [{"laboratory": p.laboratory.name, "code": p.code} for p in added]}
+        body = {
+            "participants": [
+                {"laboratory": p.laboratory.name, "code": p.code, "scope": scope_body(p)}
+                for p in added
+            ]
+        }
         return Response(body, status=status.HTTP_201_CREATED)
+
+
+class ParticipantScope(ApiView):
+    """A participant's scope: what it measures and reports (docs/domain.md §10). ``PUT``
+    replaces it (absent lists: every value) until the submission deadline (409 after)."""
+
+    def _participant(self, code: str) -> Participant:
+        access = self.access(code)
+        require_coordinator(access)
+        return get_object_or_404(
+            access.comparison.participants.select_related("comparison"),
+            code=self.kwargs["participant"],
+        )
+
+    @extend_schema(responses={200: ScopeOutSerializer})
+    def get(self, request: Request, code: str, participant: str) -> Response:
+        return Response(scope_body(self._participant(code)))
+
+    @extend_schema(request=ScopeSerializer, responses={200: ScopeOutSerializer})
+    def put(self, request: Request, code: str, participant: str) -> Response:
+        chosen = self._participant(code)
+        scope = ScopeSerializer(data=request.data).scope()
+        participant_scope_set(participant=chosen, scope=scope)
+        return Response(scope_body(chosen))
 
 
 urlpatterns = [
@@ -130,4 +208,9 @@ urlpatterns = [
         name="measurand-generate",
     ),
     path("comparisons/<slug:code>/participants/", Invite.as_view(), name="participant-invite"),
+    path(
+        "comparisons/<slug:code>/participants/<str:participant>/scope/",
+        ParticipantScope.as_view(),
+        name="participant-scope",
+    ),
 ]

@@ -28,7 +28,7 @@ from django.db import transaction
 from analysis.core.signals import synthetic
 from labs.models import Laboratory, Membership, Participant, Result, Submission
 from labs.raw_services import Upload, raw_record_upload
-from labs.services import participant_add
+from labs.services import Scope, participants_invite
 from proficiency.models import (
     AssignedValueMethod,
     Comparison,
@@ -171,7 +171,9 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
         admin.save(update_fields=["is_superuser"])
     for name, country, username in (LINEAR_LAB, CURVILINEAR_LAB):
         bench = "linear" if username == "linear-lab" else "curvilinear"
-        participant = _lab(summary, comparison, name, country, username, password)
+        # each bench laboratory measures its own bench only (docs/domain.md §10)
+        scope = Scope(benches=[bench])
+        participant = _lab(summary, comparison, name, country, username, password, scope)
         _submit(participant, reproduction_results(points, bench), Submission.Source.FILE)
     for i, (name, country) in enumerate(SYNTHETIC_LABS, start=3):
         participant = _lab(summary, comparison, name, country, f"lab{i:02d}", password)
@@ -262,6 +264,7 @@ def _lab(
     country: str,
     username: str,
     password: str | None,
+    scope: Scope | None = None,
 ) -> Participant:
     lab, _ = Laboratory.objects.get_or_create(
         name=name,
@@ -277,7 +280,9 @@ def _lab(
     Membership.objects.get_or_create(
         user=user, laboratory=lab, defaults={"role": Membership.Role.STAFF}
     )
-    return participant_add(comparison=comparison, laboratory=lab)
+    # a new participant gets ``scope``; one from an earlier run of the demo keeps its own
+    (participant,) = participants_invite(comparison=comparison, laboratories=[lab], scope=scope)
+    return participant
 
 
 def _submit(

@@ -8,7 +8,9 @@ from typing import Any, cast
 from django import forms
 
 from common.forms import BootstrapMixin
-from labs.models import Laboratory
+from common.points import format_number
+from labs.models import Laboratory, Participant
+from labs.services import Scope
 from proficiency import protocols
 from proficiency.models import (
     CODE_INVALID,
@@ -152,13 +154,68 @@ class PointOverrideForm(BootstrapMixin, forms.ModelForm):
         cast(forms.ChoiceField, self.fields["assigned_value_method"]).choices = choices
 
 
-class InviteForm(BootstrapMixin, forms.Form):
+def _optional_floats(text: str) -> list[float]:
+    """Frequencies separated by commas, or none at all (every frequency)."""
+    return _floats(text) if text.strip() else []
+
+
+class ScopeForm(BootstrapMixin, forms.Form):
+    """What a participant measures (docs/domain.md §10); nothing chosen in a field allows
+    every value of it. ``labs.services`` checks the scope against the comparison."""
+
+    devices = forms.ModelMultipleChoiceField(
+        queryset=Device.objects.none(), required=False, widget=forms.CheckboxSelectMultiple,
+        help_text="None chosen: every device.",
+    )  # fmt: skip
+    benches = forms.MultipleChoiceField(
+        choices=Bench.choices, required=False, widget=forms.CheckboxSelectMultiple,
+        help_text="None chosen: every bench.",
+    )  # fmt: skip
+    axes = forms.MultipleChoiceField(
+        choices=Axis.choices, required=False, widget=forms.CheckboxSelectMultiple,
+        help_text="None chosen: every axis.",
+    )  # fmt: skip
+    frequencies_hz = forms.CharField(
+        required=False, label="Frequencies",
+        help_text="Hz, separated by commas; empty: every frequency.",
+    )  # fmt: skip
+
+    def __init__(
+        self, *args: Any, comparison: Comparison, participant: Participant | None = None,
+        **kwargs: Any,
+    ) -> None:  # fmt: skip
+        if participant is not None and "initial" not in kwargs:
+            kwargs["initial"] = {
+                "devices": list(participant.scope_devices.all()),
+                "benches": participant.scope_benches,
+                "axes": participant.scope_axes,
+                "frequencies_hz": ", ".join(map(format_number, participant.scope_frequencies_hz)),
+            }
+        super().__init__(*args, **kwargs)
+        field = cast(forms.ModelMultipleChoiceField, self.fields["devices"])
+        field.queryset = comparison.devices.order_by("name")
+
+    def clean_frequencies_hz(self) -> list[float]:
+        return _optional_floats(self.cleaned_data.get("frequencies_hz", ""))
+
+    def scope(self) -> Scope:
+        data = self.cleaned_data
+        return Scope(
+            devices=list(data["devices"]),
+            benches=data["benches"],
+            axes=data["axes"],
+            frequencies_hz=data["frequencies_hz"],
+        )
+
+
+class InviteForm(ScopeForm):
     laboratories = forms.ModelMultipleChoiceField(
         queryset=Laboratory.objects.none(), widget=forms.SelectMultiple(attrs={"size": 8})
     )
+    field_order = ["laboratories"]
 
     def __init__(self, *args: Any, comparison: Comparison, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
+        super().__init__(*args, comparison=comparison, **kwargs)
         field = cast(forms.ModelMultipleChoiceField, self.fields["laboratories"])
         field.queryset = Laboratory.objects.exclude(participations__comparison=comparison).order_by(
             "name"

@@ -22,6 +22,7 @@ urlpatterns = [
     path(C + "points/generate/", views.points_generate, name="points_generate"),
     path(C + "points/<int:pk>/", views.point_edit, name="point_edit"),
     path(C + "participants/invite/", views.participants_invite, name="invite"),
+    path(C + "participants/<str:participant>/scope/", views.participant_scope, name="scope"),
     path(
         C + "participants/<str:participant>/reference/",
         views.participant_reference,

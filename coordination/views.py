@@ -15,7 +15,7 @@ from django import forms
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.core.paginator import Paginator
-from django.db.models import Count, OuterRef, QuerySet, Subquery
+from django.db.models import Count, OuterRef, QuerySet, Subquery, prefetch_related_objects
 from django.http import Http404, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
@@ -33,6 +33,7 @@ from coordination.forms import (
     PointGridForm,
     PointOverrideForm,
     ReportNotesForm,
+    ScopeForm,
 )
 from labs import services as labs_services
 from labs.access import coordinated, coordinated_comparisons
@@ -40,7 +41,12 @@ from labs.models import Participant, Result, Submission
 from labs.notices import notices_of_comparison
 from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
 from labs.review import submission_decide, submission_request_check
-from labs.selectors import current_submissions
+from labs.selectors import (
+    current_submissions,
+    participant_points,
+    participants_point_counts,
+    scope_text,
+)
 from labs.services import comparison_move, participant_set_reference
 from proficiency import protocols, services
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
@@ -133,7 +139,9 @@ NOTICES_SHOWN = 200
 @require_GET
 def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
-    participants = _latest_status(comparison.participants.select_related("laboratory"))
+    participants = _latest_status(
+        comparison.participants.select_related("laboratory").prefetch_related("scope_devices")
+    )
     context = {
         "comparison": comparison,
         "devices": comparison.devices.all(),
@@ -300,7 +308,9 @@ def participants_invite(request: AuthenticatedHttpRequest, code: str) -> HttpRes
     if request.method == "POST" and form.is_valid():
         labs = list(form.cleaned_data["laboratories"])
         try:
-            added = labs_services.participants_invite(comparison=comparison, laboratories=labs)
+            added = labs_services.participants_invite(
+                comparison=comparison, laboratories=labs, scope=form.scope()
+            )
         except ApplicationError as exc:
             _add_errors(form, exc)
         else:
@@ -310,6 +320,44 @@ def participants_invite(request: AuthenticatedHttpRequest, code: str) -> HttpRes
             )
             return redirect("coordinator:comparison", code=code)
     return render(request, "coordinator/invite.html", {"form": form, "comparison": comparison})
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def participant_scope(
+    request: AuthenticatedHttpRequest, code: str, participant: str
+) -> HttpResponse:
+    """What one participant measures (docs/domain.md §10), changeable until the deadline."""
+    comparison = coordinated(request, code)
+    participants = comparison.participants.select_related("laboratory")
+    chosen = get_object_or_404(participants, code=participant)
+    form = ScopeForm(request.POST or None, comparison=comparison, participant=chosen)
+    if request.method == "POST" and form.is_valid():
+        try:
+            labs_services.participant_scope_set(participant=chosen, scope=form.scope())
+        except ApplicationError as exc:
+            _add_errors(form, exc)
+        else:
+            messages.success(request, f"Scope of {chosen.code} saved: {scope_text(chosen)}.")
+            return redirect("coordinator:comparison", code=code)
+    context = {
+        "form": form,
+        "comparison": comparison,
+        "participant": chosen,
+        "scope": scope_text(chosen),
+        "n_points": participant_points(chosen).count(),
+        "n_comparison_points": comparison.measurement_points.count(),
+        "closed_reason": _scope_closed_reason(comparison),
+    }
+    return render(request, "coordinator/scope_form.html", context)
+
+
+def _scope_closed_reason(comparison: Comparison) -> str | None:
+    try:
+        labs_services.scope_change_check(comparison)
+    except ApplicationError as exc:
+        return exc.message
+    return None
 
 
 @login_required
@@ -338,11 +386,18 @@ def review(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     participants = _latest_status(comparison.participants.select_related("laboratory"))
     page = Paginator(participants.order_by("code"), REVIEW_PER_PAGE)
+    page_obj = page.get_page(request.GET.get("page"))
+    # completeness counts each participant's own points (its scope, docs/domain.md §10)
+    n_points, counts = participants_point_counts(comparison, list(page_obj))
+    for p in page_obj:
+        p.n_points = counts[p.pk]  # type: ignore[attr-defined]
+    # the page names the scope of those that do not report every point: their devices at once
+    prefetch_related_objects([p for p in page_obj if counts[p.pk] != n_points], "scope_devices")
     context = {
         "comparison": comparison,
-        "participants": (page_obj := page.get_page(request.GET.get("page"))),
+        "participants": page_obj,
         "page_obj": page_obj,
-        "n_points": comparison.measurement_points.count(),
+        "n_points": n_points,
     }
     return render(request, "coordinator/review.html", context)
 

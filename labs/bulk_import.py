@@ -12,7 +12,9 @@ Everything is stored in one transaction. Each participant in the file gets one n
 ``submitted`` version, by the rule of :func:`labs.services.submission_save`: its open
 draft, if any, is replaced and submitted, otherwise a new version is made; decided
 versions are never touched, and older versions stay as history (the newest
-is the current one). A submission needs a result for every measurement point.
+is the current one). A submission needs a result for every measurement point of the
+participant's scope (docs/domain.md §10; every point without one), and a row outside its
+scope is refused.
 Results are written chunk by chunk (``COPY`` on PostgreSQL) while no error has
 been found; any error rolls everything back and raises :class:`ImportRefused`
 listing the first ``MAX_LISTED_ERRORS`` problems and their total count.
@@ -37,12 +39,12 @@ from django.db.models import Max
 from django.utils import timezone
 
 from common.errors import NotVisible, StateConflict, ValidationFailed
-from common.points import POINT_LOOKUPS
+from common.points import POINT_LOOKUPS, point_label
 from labs.importers import ImportErrors, PointKey, ResultRow, RowError, TableContext
 from labs.importers.errors import MAX_LISTED_ERRORS, more_problems
 from labs.importers.stream import Chunk, read_chunks
 from labs.models import Participant, Result, Submission
-from labs.selectors import table_context
+from labs.selectors import participant_points, scope_text, table_context
 from labs.services import results_insert, results_sql
 from proficiency.models import Comparison, ComparisonStatus
 
@@ -272,6 +274,33 @@ class _Import:
             submissions.filter(status=St.DRAFT).order_by("version").values_list("participant", "pk")
         )
         self.submission_of = np.zeros(len(found), np.int64)
+        self._scopes(comparison, found)
+
+    def _scopes(self, comparison: Comparison, found: list[tuple[int, str]]) -> None:
+        """Per participant with a scope (docs/domain.md §10), by index: which of the points
+        it reports (a mask over ``point_keys``) and the scope in words; one query for the
+        scopes, two more per participant that has one."""
+        self.scope_mask: dict[int, np.ndarray] = {}
+        self.scope_words: dict[int, str] = {}
+        index_of = {pk: i for i, (pk, _) in enumerate(found)}
+        with_devices = set(
+            Participant.scope_devices.through.objects.filter(
+                participant__comparison=comparison
+            ).values_list("participant_id", flat=True)
+        )
+        point_index = {pk: i for i, pk in enumerate(self.point_pks)}
+        for pk, benches, axes, frequencies in Participant.objects.filter(
+            comparison=comparison
+        ).values_list("pk", "scope_benches", "scope_axes", "scope_frequencies_hz"):
+            if not (pk in with_devices or benches or axes or frequencies):
+                continue
+            scoped = Participant(pk=pk, comparison_id=comparison.pk, scope_benches=benches,
+                                 scope_axes=axes, scope_frequencies_hz=frequencies)  # fmt: skip
+            mask = np.zeros(len(self.point_pks), bool)
+            chosen = participant_points(scoped).values_list("pk", flat=True)
+            mask[[point_index[p] for p in chosen]] = True
+            self.scope_mask[index_of[pk]] = mask
+            self.scope_words[index_of[pk]] = scope_text(scoped)
 
     # --- one chunk -----------------------------------------------------------------------------
 
@@ -285,9 +314,16 @@ class _Import:
             if index is None:
                 problems.append(RowError(row.row, "lab", self._unknown(row.lab)))
                 continue
+            point = self._point(row)
+            mask = self.scope_mask.get(index)
+            if mask is not None and not mask[point]:
+                problems.append(RowError(row.row, None, (
+                    f"{point_label(self.point_keys[point])} is not in the scope of "
+                    f"{self.codes[index]} ({self.scope_words[index]})")))  # fmt: skip
+                continue
             keep.append(row)
             parts.append(index)
-            points.append(self._point(row))
+            points.append(point)
         numbers = np.fromiter((r.row for r in keep), np.int64, len(keep))
         keys = np.asarray(parts, np.int64) * len(self.point_keys) + np.asarray(points, np.int64)
         repeated, earlier = self.seen.add(keys, numbers)
@@ -398,14 +434,19 @@ class _Import:
         participant = self.seen.keys // max(n, 1)
         counts = np.bincount(participant, minlength=len(self.codes))
         errors: list[RowError] = []
-        for index in np.flatnonzero((counts > 0) & (counts < n)):
+        for index in np.flatnonzero(counts > 0):
+            mask = self.scope_mask.get(int(index))
+            if mask is None and counts[index] >= n:
+                continue
+            expected = np.arange(n) if mask is None else np.flatnonzero(mask)
+            of = "" if mask is None else " of its scope"
             have = self.seen.keys[participant == index] % n
-            for i in np.setdiff1d(np.arange(n), have):
+            for i in np.setdiff1d(expected, have):
                 p = self.point_keys[i]
                 errors.append(RowError(None, "lab", (
                     f"{self.codes[index]}: missing result for {p.device}, {p.axis}, "
                     f"{p.frequency_hz:g} Hz, {p.bench} {p.direction}; a submission needs a "
-                    "result for every measurement point")))  # fmt: skip
+                    f"result for every measurement point{of}")))  # fmt: skip
                 if len(errors) > self.errors.cap:
                     return errors
         return errors

@@ -12,7 +12,7 @@ from rest_framework_api_key.models import AbstractAPIKey, APIKeyManager
 
 from common.rows import JoinedQuery, ModelColumns
 from labs.importers.schema import ENTERED_MAX_CHARS
-from proficiency.models import Comparison, MeasurementPoint, finite_positive
+from proficiency.models import Comparison, Device, MeasurementPoint, finite_positive
 
 
 class Laboratory(models.Model):
@@ -71,6 +71,23 @@ class Participant(models.Model):
         default=False, help_text="Pilot / reference laboratory of the comparison."
     )
     invited_at = models.DateTimeField(auto_now_add=True)
+    # The participant's scope (docs/domain.md §10): the points it measures are those whose
+    # device, bench, axis and frequency are each in its list; an empty list allows every
+    # value, so a participant with no scope measures every point of the comparison.
+    scope_devices = models.ManyToManyField(
+        Device, blank=True, related_name="scoped_participants",
+        help_text="Devices the laboratory measures (none chosen: every device).",
+    )  # fmt: skip
+    scope_benches = models.JSONField(
+        default=list, blank=True, help_text="Benches the laboratory measures ([]: every bench)."
+    )
+    scope_axes = models.JSONField(
+        default=list, blank=True, help_text="Axes the laboratory measures ([]: every axis)."
+    )
+    scope_frequencies_hz = models.JSONField(
+        default=list, blank=True,
+        help_text="Frequencies the laboratory measures, Hz ([]: every frequency).",
+    )  # fmt: skip
 
     class Meta:
         ordering = ["comparison", "code"]

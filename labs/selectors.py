@@ -2,13 +2,27 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from django.contrib.auth.models import AnonymousUser, User
-from django.db.models import Count, Max, OuterRef, QuerySet, Subquery
+from django.db.models import (
+    BooleanField,
+    Case,
+    Count,
+    Exists,
+    Expression,
+    Max,
+    OuterRef,
+    Q,
+    QuerySet,
+    Subquery,
+    Value,
+    When,
+)
 
 from common.errors import NotVisible
-from common.points import POINT_LOOKUPS
+from common.points import POINT_LOOKUPS, format_number
 from common.rows import JoinedQuery, ModelColumns
 from labs.importers import COLUMNS, PointKey, ResultRow, TableContext, write_table
 from labs.models import Laboratory, Participant, Result, Submission
@@ -100,6 +114,93 @@ def comparison_points(comparison: Comparison) -> dict[PointKey, MeasurementPoint
     return {p.key: p for p in points}
 
 
+def scope_filter(participant: Participant) -> Q:
+    """The measurement points of ``participant``'s scope as a filter on its comparison's
+    points (docs/domain.md §10): each of the scope's lists that is not empty must hold the
+    point's value. The devices are read in the same SQL statement (no query here)."""
+    chosen = Participant.scope_devices.through.objects.filter(participant_id=participant.pk)
+    devices = Q(device__in=chosen.values("device_id")) | ~Exists(chosen)
+    return devices & scope_levels_filter(
+        benches=participant.scope_benches,
+        axes=participant.scope_axes,
+        frequencies_hz=participant.scope_frequencies_hz,
+    )
+
+
+def scope_levels_filter(
+    *,
+    device_ids: Sequence[int] = (),
+    benches: Sequence[str] = (),
+    axes: Sequence[str] = (),
+    frequencies_hz: Sequence[float] = (),
+) -> Q:
+    """The rule of a scope written once: a point is in it when each list that is not empty
+    holds the point's value (an empty list allows every value)."""
+    q = Q()
+    for lookup, values in (
+        ("device_id__in", device_ids),
+        ("bench__in", benches),
+        ("axis__in", axes),
+        ("frequency_hz__in", frequencies_hz),
+    ):
+        if values:
+            q &= Q(**{lookup: list(values)})
+    return q
+
+
+def scope_flag(participant: Participant | None, *, default: bool | None = None) -> Expression:
+    """An annotation on measurement points: whether each is in ``participant``'s scope;
+    ``default`` for every point without a participant."""
+    if participant is None:
+        return Value(default, output_field=BooleanField())
+    return Case(
+        When(scope_filter(participant), then=Value(True)),
+        default=Value(False),
+        output_field=BooleanField(),
+    )
+
+
+def participant_points(participant: Participant) -> QuerySet[MeasurementPoint]:
+    """The measurement points ``participant`` reports, in the comparison's point order:
+    those of its scope, every point of the comparison when it has none. The one answer
+    for its grid, its template, its completeness and the review page."""
+    return (
+        MeasurementPoint.objects.filter(comparison_id=participant.comparison_id)
+        .filter(scope_filter(participant))
+        .select_related("device")
+    )
+
+
+def participants_point_counts(
+    comparison: Comparison, participants: Sequence[Participant]
+) -> tuple[int, dict[int, int]]:
+    """The comparison's number of measurement points, and how many of them each of
+    ``participants`` reports (its scope's, :func:`participant_points`) by its pk: one
+    query, whatever the number of participants (a conditional count each)."""
+    counts = MeasurementPoint.objects.filter(comparison=comparison).aggregate(
+        total=Count("pk"),
+        **{f"p{p.pk}": Count("pk", filter=scope_filter(p)) for p in participants},
+    )
+    return counts["total"], {p.pk: counts[f"p{p.pk}"] for p in participants}
+
+
+def scope_text(participant: Participant) -> str:
+    """The scope in words: ``devices MEMS 1; bench linear``; ``every measurement point``
+    when it has none (one query for the devices unless ``scope_devices`` is prefetched)."""
+    names = sorted(d.name for d in participant.scope_devices.all())  # prefetched, or one query
+    parts = []
+    for word, plural, values in (
+        ("device", "devices", names),
+        ("bench", "benches", list(participant.scope_benches)),
+        ("axis", "axes", list(participant.scope_axes)),
+        ("frequency", "frequencies",
+         [f"{format_number(f)} Hz" for f in sorted(participant.scope_frequencies_hz)]),
+    ):  # fmt: skip
+        if values:
+            parts.append(f"{plural if len(values) > 1 else word} {', '.join(values)}")
+    return "; ".join(parts) or "every measurement point"
+
+
 @dataclass(frozen=True)
 class ComparisonTable:
     """What a results table of one comparison may contain (``context``, the importer's
@@ -109,21 +210,37 @@ class ComparisonTable:
     point_ids: dict[PointKey, int]
 
 
-def comparison_table(comparison: Comparison) -> ComparisonTable:
+def comparison_table(
+    comparison: Comparison, participant: Participant | None = None
+) -> ComparisonTable:
     """The comparison's :class:`ComparisonTable`, from one query of plain tuples (no model
-    instance per point): 100,000 points in well under a second."""
-    rows = comparison.measurement_points.order_by(
-        "device__name", "bench", "direction", "axis", "frequency_hz", "pk"
-    ).values_list("pk", "device__unit", *POINT_LOOKUPS, "amplitude_m_s2")
+    instance per point): 100,000 points in well under a second.
+
+    With ``participant``, the context carries its scope (rows outside it are refused, a
+    complete table needs its points only); a participant whose scope leaves no point out
+    gets the whole comparison's context, with no further query."""
+    rows = (
+        comparison.measurement_points.order_by(
+            "device__name", "bench", "direction", "axis", "frequency_hz", "pk"
+        )
+        .annotate(in_scope=scope_flag(participant, default=True))
+        .values_list("pk", "device__unit", *POINT_LOOKUPS, "amplitude_m_s2", "in_scope")
+    )
     keys: list[PointKey] = []
+    scoped: list[PointKey] = []
     units: dict[str, str] = {}
     point_ids: dict[PointKey, int] = {}
-    for pk, unit, *fields in rows:
+    for pk, unit, *fields, inside in rows:
         key = PointKey(*fields)
         keys.append(key)
+        if inside:
+            scoped.append(key)
         units[key.device] = unit
         point_ids[key] = pk
-    return ComparisonTable(TableContext.from_points(keys, device_units=units), point_ids)
+    context = TableContext.from_points(keys, device_units=units)
+    if participant is not None and len(scoped) < len(keys):
+        context = context.with_scope(scoped, scope_text(participant))
+    return ComparisonTable(context, point_ids)
 
 
 def table_context(comparison: Comparison) -> TableContext:
@@ -191,10 +308,18 @@ def participant_submissions(participant: Participant) -> QuerySet[Submission]:
 TEMPLATE_COLUMNS = [c for c in COLUMNS if c != "lab"]
 
 
-def results_template(comparison: Comparison, *, format: str) -> bytes:
+def results_template(
+    comparison: Comparison, *, format: str, participant: Participant | None = None
+) -> bytes:
     """The results table of docs/interfaces.md §1 with one row per measurement point, sensitivity
-    and U left empty, k = 2 filled in (the web download and the API serve the same file)."""
-    points = comparison.measurement_points.select_related("device").order_by(
+    and U left empty, k = 2 filled in (the web download and the API serve the same file);
+    for a ``participant``, the points of its scope only (:func:`participant_points`)."""
+    chosen = (
+        participant_points(participant)
+        if participant is not None
+        else comparison.measurement_points.select_related("device")
+    )
+    points = chosen.order_by(
         "device__name", "bench", "direction", "axis", "frequency_hz", "amplitude_m_s2", "pk"
     )
     rows = (

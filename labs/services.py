@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import datetime as dt
 import hashlib
+import math
 import secrets
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any, cast
 
 from django.conf import settings
@@ -15,6 +17,7 @@ from django.db.backends.base.base import BaseDatabaseWrapper
 from django.utils import timezone
 
 from common.errors import InvalidTransition, KeyReused, StateConflict, ValidationFailed
+from common.points import format_number, point_label
 from labs.importers import (
     ImportErrors,
     PointKey,
@@ -25,9 +28,9 @@ from labs.importers import (
 )
 from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission, SubmissionKey
 from labs.notices import notify_invited, notify_opened, notify_receipt
-from labs.selectors import ComparisonTable, comparison_table
+from labs.selectors import ComparisonTable, comparison_table, scope_levels_filter
 from proficiency import services as proficiency_services
-from proficiency.models import Comparison, ComparisonStatus
+from proficiency.models import Axis, Bench, Comparison, ComparisonStatus, Device
 
 CODE_PREFIX = "L"
 
@@ -73,25 +76,138 @@ def participant_add(
     raise StateConflict(f"Could not allocate a participant code in {comparison.code}; retry.")
 
 
+@dataclass(frozen=True)
+class Scope:
+    """What a participant measures (docs/domain.md §10), as given by a coordinator: devices
+    (rows or names), benches, axes, frequencies; an empty list allows every value."""
+
+    devices: Sequence[Device | str] = ()
+    benches: Sequence[str] = ()
+    axes: Sequence[str] = ()
+    frequencies_hz: Sequence[float] = ()
+
+
+@dataclass(frozen=True)
+class _CleanScope:
+    devices: list[Device]
+    benches: list[str]
+    axes: list[str]
+    frequencies_hz: list[float]
+
+
+def _scope_clean(comparison: Comparison, scope: Scope) -> _CleanScope:
+    """The scope checked against ``comparison``: its devices, known benches and axes, and
+    frequencies of its points (taken at the points' value); ValidationFailed naming every
+    bad value, and when the comparison has points but the scope holds none of them."""
+    errors: list[dict[str, object]] = []
+    by_name = {" ".join(d.name.split()).casefold(): d for d in comparison.devices.all()}
+    devices: list[Device] = []
+    for given in scope.devices:
+        if isinstance(given, Device):
+            found = given if given.comparison_id == comparison.pk else None
+        else:
+            found = by_name.get(" ".join(str(given).split()).casefold())
+        if found is None:
+            errors.append({"row": None, "field": "devices",
+                           "message": f"{given} is not a device of {comparison.code}"})  # fmt: skip
+        elif found not in devices:
+            devices.append(found)
+    benches = list(dict.fromkeys(scope.benches))
+    errors += [
+        {"row": None, "field": "benches",
+         "message": f"unknown bench {b!r}; one of {', '.join(Bench.values)}"}
+        for b in benches if b not in Bench.values
+    ]  # fmt: skip
+    axes = list(dict.fromkeys(a.upper() if isinstance(a, str) else a for a in scope.axes))
+    errors += [
+        {"row": None, "field": "axes", "message": f"unknown axis {a!r}; one of X, Y, Z"}
+        for a in axes if a not in Axis.values
+    ]  # fmt: skip
+    known = sorted(set(comparison.measurement_points.values_list("frequency_hz", flat=True)))
+    frequencies: list[float] = []
+    for f in scope.frequencies_hz:
+        if not (isinstance(f, int | float) and math.isfinite(f) and f > 0):
+            errors.append({"row": None, "field": "frequencies_hz",
+                           "message": f"{f!r} is not a frequency > 0"})  # fmt: skip
+            continue
+        same = [k for k in known if math.isclose(k, f, rel_tol=1e-9)] if known else [float(f)]
+        if not same:
+            errors.append({"row": None, "field": "frequencies_hz",
+                           "message": f"{format_number(f)} Hz is not a frequency of "
+                           f"{comparison.code}"})  # fmt: skip
+        elif same[0] not in frequencies:
+            frequencies.append(same[0])
+    if errors:
+        raise ValidationFailed("The scope does not fit the comparison.", errors=errors)
+    clean = _CleanScope(devices, benches, axes, frequencies)
+    points = comparison.measurement_points
+    levels = scope_levels_filter(
+        device_ids=[d.pk for d in devices], benches=benches, axes=axes, frequencies_hz=frequencies
+    )
+    if points.exists() and not points.filter(levels).exists():
+        raise ValidationFailed(
+            f"The scope holds none of the measurement points of {comparison.code}.",
+            errors=[{"row": None, "field": None, "message": "no measurement point in the scope"}],
+        )
+    return clean
+
+
+def _scope_store(participant: Participant, scope: _CleanScope) -> None:
+    participant.scope_benches = scope.benches
+    participant.scope_axes = scope.axes
+    participant.scope_frequencies_hz = scope.frequencies_hz
+    participant.save(update_fields=["scope_benches", "scope_axes", "scope_frequencies_hz"])
+    participant.scope_devices.set(scope.devices)
+
+
+def scope_change_check(comparison: Comparison) -> None:
+    """StateConflict (409) once the comparison's submission deadline has passed: the
+    laboratories plan and report against their scope until then."""
+    deadline = comparison.submission_deadline
+    if deadline is not None and timezone.now() > deadline:
+        raise StateConflict(
+            f"The submission deadline of {comparison.code} passed on "
+            f"{deadline:%Y-%m-%d %H:%M} UTC: scopes can no longer be changed."
+        )
+
+
+@transaction.atomic
+def participant_scope_set(*, participant: Participant, scope: Scope) -> Participant:
+    """Set what ``participant`` measures (an empty :class:`Scope`: every point), until the
+    submission deadline; all or nothing, under the participant's row lock."""
+    comparison = participant.comparison
+    scope_change_check(comparison)
+    clean = _scope_clean(comparison, scope)
+    Participant.objects.select_for_update().get(pk=participant.pk)
+    _scope_store(participant, clean)
+    return participant
+
+
 @transaction.atomic
 def participants_invite(
-    *, comparison: Comparison, laboratories: Sequence[Laboratory]
+    *, comparison: Comparison, laboratories: Sequence[Laboratory], scope: Scope | None = None
 ) -> list[Participant]:
     """Invite ``laboratories`` to ``comparison``, all or none, in one transaction; each new
-    participant gets a random code (:func:`participant_code_new`), an existing participation
-    is returned unchanged (so a repeated invitation is harmless). Each new participant's
-    laboratory is sent an invitation notice (docs/lifecycles.md §6)."""
+    participant gets a random code (:func:`participant_code_new`) and ``scope`` (none: every
+    point), an existing participation is returned unchanged, its scope too (so a repeated
+    invitation is harmless; :func:`participant_scope_set` changes a scope). Each new
+    participant's laboratory is sent an invitation notice (docs/lifecycles.md §6)."""
     if not laboratories:
         raise ValidationFailed(
             f"Choose at least one laboratory to invite to {comparison.code}.",
             errors=[{"field": "laboratories", "message": "at least one laboratory"}],
         )
+    clean = _scope_clean(comparison, scope) if scope is not None else None
     before = set(comparison.participants.values_list("pk", flat=True))
-    invited = [participant_add(comparison=comparison, laboratory=lab) for lab in laboratories]
-    for participant in invited:
-        if participant.pk not in before:
-            notify_invited(participant)
-    return invited
+    added = [participant_add(comparison=comparison, laboratory=lab) for lab in laboratories]
+    for participant in added:
+        if participant.pk in before:
+            continue
+        before.add(participant.pk)
+        if clean is not None:
+            _scope_store(participant, clean)
+        notify_invited(participant)
+    return added
 
 
 @transaction.atomic
@@ -157,19 +273,16 @@ def submission_window_check(comparison: Comparison) -> None:
         )
 
 
-def _missing_error(missing: list[PointKey]) -> ValidationFailed:
+def _missing_error(missing: list[PointKey], table: ComparisonTable) -> ValidationFailed:
     listed = [
-        {
-            "row": None,
-            "field": None,
-            "message": f"missing result for {p.device}, {p.axis}, {p.frequency_hz:g} Hz, "
-            f"{p.bench} {p.direction}",
-        }
+        {"row": None, "field": None, "message": f"missing result for {point_label(p)}"}
         for p in missing
     ]
+    scope = table.context.scope_text
+    where = f" of your scope ({scope})" if table.context.scope is not None else ""
     return ValidationFailed(
-        f"{len(missing)} measurement point(s) have no result; a partial submission can only "
-        "be saved as a draft.",
+        f"{len(missing)} measurement point(s){where} have no result; a partial submission can "
+        "only be saved as a draft.",
         errors=listed,
     )
 
@@ -188,9 +301,10 @@ def submission_save(
     """Store a participant's results, all or nothing (the one path for grid, upload and API).
 
     ``rows`` come from the importer, validated against ``table`` (the comparison's
-    :func:`comparison_table`: read here when not given; the points of an open comparison
-    do not change).  Saving a draft replaces the participant's open draft, if any;
-    submitting needs a result for every measurement point and makes the draft (or a new
+    :func:`comparison_table` with the participant's scope: read here when not given; the
+    points of an open comparison do not change).  Saving a draft replaces the participant's
+    open draft, if any; submitting needs a result for every measurement point of its scope
+    (every point without one) and makes the draft (or a new
     version) ``submitted``.  Decided versions are never touched: a correction is a new
     version.  The participant row is locked so versions never collide.
 
@@ -203,7 +317,7 @@ def submission_save(
     """
     Participant.objects.select_for_update().get(pk=participant.pk)
     comparison = participant.comparison
-    table = table or comparison_table(comparison)
+    table = table or comparison_table(comparison, participant)
     values = _result_values(rows, table)
     content = _content_sha256(values)
     fingerprint = hashlib.sha256(f"{content} submit={bool(submit)}".encode()).hexdigest()
@@ -218,7 +332,7 @@ def submission_save(
         return _replayed(latest, participant)
     submission_window_check(comparison)
     if submit and (missing := missing_points(rows, table.context)):
-        raise _missing_error(missing)
+        raise _missing_error(missing, table)
     if latest is not None and latest.status == St.DRAFT:
         draft = latest
         # a draft's results are never scored (only accepted versions are analysed): one
@@ -341,6 +455,12 @@ def _result_values(rows: list[ResultRow], table: ComparisonTable) -> list[tuple[
                 f"row {row.row} does not identify one measurement point of this comparison",
                 errors=[{"row": row.row, "field": None, "message": "unknown measurement point"}],
             )
+        if not table.context.in_scope(matches[0]):
+            raise ValidationFailed(
+                f"row {row.row}: {point_label(matches[0])} is not in your scope "
+                f"({table.context.scope_text})",
+                errors=[{"row": row.row, "field": None, "message": "not in your scope"}],
+            )
         point_id = table.point_ids[matches[0]]
         values.append(
             (point_id, row.sensitivity, row.unit, row.expanded_uncertainty,
@@ -403,7 +523,7 @@ def submission_from_file(
     idempotency_key: str = "",
 ) -> Submission:
     """A CSV/XLSX upload (docs/interfaces.md §1): parse against the comparison, then save."""
-    table = comparison_table(participant.comparison)
+    table = comparison_table(participant.comparison, participant)
     try:
         rows = parse_table(data, filename=filename, lab_column="forbidden", context=table.context)
     except ImportErrors as exc:
@@ -424,7 +544,7 @@ def submission_from_records(
     idempotency_key: str = "",
 ) -> Submission:
     """JSON rows from the API or the web grid: same rules as a file."""
-    table = comparison_table(participant.comparison)
+    table = comparison_table(participant.comparison, participant)
     try:
         rows = parse_rows(records, lab_column="forbidden", context=table.context)
     except ImportErrors as exc:

@@ -36,8 +36,9 @@ from labs.raw_forms import RawUploadForm
 from labs.raw_selectors import raw_point_choices, raw_record_figure, raw_record_get, raw_records_of
 from labs.raw_services import human_limit, raw_declared_too_large, raw_upload_submit
 from labs.selectors import (
-    comparison_points,
+    participant_points,
     participant_submissions,
+    scope_text,
     user_laboratories,
 )
 from labs.selectors import results_template as template_bytes
@@ -156,7 +157,9 @@ def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
         "comparison": comparison,
         "template": protocols.TEMPLATES.get(comparison.protocol),
         "devices": comparison.devices.all(),
-        "points": list(comparison_points(comparison).values()),
+        "points": list(participant_points(participant)),
+        "n_comparison_points": comparison.measurement_points.count(),
+        "scope": scope_text(participant),
         "latest": participant_submissions(participant).first(),
         "closed_reason": _closed_reason(comparison),
     }
@@ -181,7 +184,7 @@ def _grid_form(participant: Participant, data: QueryDict | None = None) -> Resul
     results: dict[int, Result] = {}
     if source is not None:
         results = {r.measurement_point_id: r for r in source.results.all()}
-    points = list(comparison_points(participant.comparison).values())
+    points = list(participant_points(participant))
     return ResultGridForm(data, points=points, results=results)
 
 
@@ -280,12 +283,13 @@ def results_upload(request: AuthenticatedHttpRequest, code: str) -> HttpResponse
 @login_required
 @require_GET
 def results_template(request: AuthenticatedHttpRequest, code: str, fmt: str) -> HttpResponse:
-    """The comparison's measurement points as a results table with empty values to fill in."""
+    """The participant's measurement points (its scope) as a results table with empty values
+    to fill in."""
     if fmt not in CONTENT_TYPES:
         raise Http404("The template comes as .csv or .xlsx.")
     participant = participant_page(request, code)
     comparison = participant.comparison
-    data = template_bytes(comparison, format=fmt)
+    data = template_bytes(comparison, format=fmt, participant=participant)
     response = HttpResponse(data, content_type=CONTENT_TYPES[fmt])
     filename = f"{comparison.code}-results-template.{fmt}"
     response["Content-Disposition"] = f'attachment; filename="{filename}"'

@@ -143,6 +143,10 @@ def comparison_detail_data(comparison: Comparison, access: Any) -> dict[str, Any
 class MeasurementPointSerializer(serializers.ModelSerializer):
     device = serializers.CharField(source="device.name")
     unit = serializers.CharField(source="device.unit", help_text="Unit of the sensitivity")
+    in_scope = serializers.SerializerMethodField(
+        help_text="For a participant: whether the point is in its scope, i.e. whether it reports "
+        "a result there (docs/domain.md §10); null for a coordinator who does not take part"
+    )
 
     class Meta:
         model = MeasurementPoint
@@ -154,7 +158,11 @@ class MeasurementPointSerializer(serializers.ModelSerializer):
             "direction",
             "amplitude_m_s2",
             "unit",
+            "in_scope",
         ]
+
+    def get_in_scope(self, obj: MeasurementPoint) -> bool | None:
+        return getattr(obj, "in_scope", None)  # the view's annotation (labs.selectors.scope_flag)
 
 
 # ---------------------------------------------------------------- submissions

@@ -46,7 +46,7 @@ from labs.api.authentication import LabAPIKeyAuthentication
 from labs.api.throttling import LabAPIKeyRateThrottle, SessionUserRateThrottle
 from labs.importers.values import human_size
 from labs.models import Submission
-from labs.selectors import results_template
+from labs.selectors import results_template, scope_flag
 from labs.services import submission_from_file, submission_from_records
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.serializers import NewComparisonSerializer
@@ -213,16 +213,19 @@ class ComparisonDetail(ApiView):
     responses={200: s.MeasurementPointSerializer, **AUTH_ERRORS, **NOT_VISIBLE},
 )
 class MeasurandList(ApiView, ValuesListView):
-    """The comparison's measurement points (one result is expected for each)."""
+    """The comparison's measurement points; a participant reports a result for each point
+    whose `in_scope` is true (every point when it has no scope)."""
 
     serializer_class = s.MeasurementPointSerializer
-    rendering = ValuesRendering(s.MeasurementPointSerializer)
+    rendering = ValuesRendering(s.MeasurementPointSerializer, annotations={"in_scope": "in_scope"})
     filter_backends: list[type] = []
 
     def get_queryset(self) -> QuerySet[Any]:
         if getattr(self, "swagger_fake_view", False):  # schema generation: no request
             return MeasurementPoint.objects.none()
-        return measurement_points(self.access(self.kwargs["code"]).comparison)
+        access = self.access(self.kwargs["code"])
+        points = measurement_points(access.comparison)
+        return points.annotate(in_scope=scope_flag(access.participant))
 
 
 class CSVRenderer(BaseRenderer):
@@ -256,15 +259,18 @@ class XLSXRenderer(CSVRenderer):
     },
 )
 class ResultsTemplate(ApiView):
-    """The results table (docs/interfaces.md §1) pre-filled with the measurement points; fill in
-    `sensitivity` and `expanded_uncertainty` and upload it."""
+    """The results table (docs/interfaces.md §1) pre-filled with the measurement points (a
+    participant's: those of its scope); fill in `sensitivity` and `expanded_uncertainty` and
+    upload it."""
 
     renderer_classes = [CSVRenderer, XLSXRenderer]
 
     def get(self, request: Request, code: str) -> Response:
-        comparison = self.access(code).comparison
+        access = self.access(code)
+        comparison = access.comparison
         fmt = request.accepted_renderer.format
-        body = results_template(comparison, format=fmt)
+        # a participant's template lists its scope's points; a coordinator's, every point
+        body = results_template(comparison, format=fmt, participant=access.participant)
         filename = f"{comparison.code}-results-template.{fmt}"
         return Response(body, headers={"Content-Disposition": f'attachment; filename="{filename}"'})
 

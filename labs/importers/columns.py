@@ -339,13 +339,18 @@ def _assemble(
             continue
         row = _result_row(number, device, axis, freq, bench, direction, amp, sens, unit,
                           expanded, k, dof, lab, note, original_unit, sd, n, entered)  # fmt: skip
-        if check_points and len(context.matching_points(row)) != 1:  # type: ignore[union-attr]
+        if check_points and not _one_point_in_scope(context, row):  # type: ignore[arg-type]
             check = _RowCheck({}, number, v.decimal_comma)
             _check_point(check, row, context)
             v.note(number, [(e.field, e.message) for e in check.errors])
             continue
         rows.append(row)
     return rows
+
+
+def _one_point_in_scope(context: TableContext, row: ResultRow) -> bool:
+    found = context.matching_points(row)
+    return len(found) == 1 and context.in_scope(found[0])
 
 
 def _result_row(*values: object) -> ResultRow:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Literal
 
@@ -125,6 +125,11 @@ class TableContext:
     context's value. ``directions`` maps each bench to its directions; a bench
     missing from it allows every direction. ``points``, when given, is the
     exact list of measurement points; build it with :meth:`from_points`.
+
+    ``scope``, when given, is the subset of ``points`` one participant measures
+    (docs/domain.md §10), described for people by ``scope_text``: a row on a point
+    outside it is refused, and a complete table needs only its points. ``None``
+    means every point (build it with :meth:`with_scope`).
     """
 
     device_units: Mapping[str, str] | None = None
@@ -137,6 +142,17 @@ class TableContext:
     points: tuple[PointKey, ...] | None = None
     default_unit: str = CANONICAL_UNIT
     frequency_rel_tol: float = 1e-9
+    scope: frozenset[PointKey] | None = None
+    scope_text: str = ""
+
+    def with_scope(self, points: Iterable[PointKey] | None, text: str = "") -> TableContext:
+        """This context limited to ``points`` (``None``: every point), described by ``text``."""
+        scope = None if points is None else frozenset(points)
+        return replace(self, scope=scope, scope_text=text)
+
+    def in_scope(self, point: PointKey) -> bool:
+        """Whether ``point`` (one of ``points``) is in the scope; always without one."""
+        return self.scope is None or point in self.scope
 
     @classmethod
     def from_points(
@@ -221,8 +237,11 @@ class TableContext:
         ]
 
     def expected_points(self) -> tuple[PointKey, ...]:
-        """``points``, or else every device × axis × frequency × (bench, direction)."""
+        """``points`` (those of the scope, when there is one), or else every device × axis ×
+        frequency × (bench, direction)."""
         if self.points is not None:
+            if self.scope is not None:
+                return tuple(p for p in self.points if p in self.scope)
             return self.points
         if self.device_units is None or self.frequencies_hz is None:
             raise ValueError("the context lists neither its points nor its devices and frequencies")
@@ -237,7 +256,8 @@ class TableContext:
 
 
 def missing_points(rows: Iterable[ResultRow], context: TableContext) -> list[PointKey]:
-    """The context's measurement points no row covers, in the context's order.
+    """The context's measurement points no row covers, in the context's order; with a
+    scope, only the scope's points.
 
     For a coordinator's table with several labs, call it with one lab's rows.
     """

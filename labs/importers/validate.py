@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TypeVar
 
 from common.numbers import percent_fraction
+from common.points import point_label
 
 from .errors import ImportErrors, RowError
 from .schema import (
@@ -392,7 +393,10 @@ def _check_point(check: _RowCheck, row: ResultRow, context: TableContext | None)
             f"{format_number(row.frequency_hz)} Hz / {row.bench} / {row.direction}"
             " in this comparison",
         )
-    elif len(found) > 1:
+    elif len(found) == 1:
+        if not context.in_scope(found[0]):
+            check.fail(None, f"{point_label(found[0])} is not in your scope ({context.scope_text})")
+    else:
         options = ", ".join(
             "none" if p.amplitude_m_s2 is None else format_number(p.amplitude_m_s2) for p in found
         )

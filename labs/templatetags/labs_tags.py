@@ -16,8 +16,9 @@ from django.utils.html import format_html
 from common import numbers
 from common.points import format_number, point_label
 from labs.access import managed_labs
-from labs.models import Laboratory, Submission
+from labs.models import Laboratory, Participant, Submission
 from labs.notices import notices_unread_count
+from labs.selectors import scope_text
 from proficiency.models import ComparisonStatus, MeasurementPoint
 from proficiency.protocols import BenchPlan
 
@@ -169,3 +170,9 @@ def unit_heading(unit: str) -> str:
     if unit:
         return format_html(' <span class="fw-normal text-nowrap">({})</span>', unit)
     return format_html(' <span class="fw-normal small">{}</span>', "(unit in each row)")
+
+
+@register.filter
+def scope(participant: Participant) -> str:
+    """A participant's scope in words (``labs.selectors.scope_text``)."""
+    return scope_text(participant)

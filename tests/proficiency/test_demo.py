@@ -117,3 +117,26 @@ def test_outlier_is_clear_and_the_rest_plausible():
         else:
             assert deviation < 0.04, (lab, dev, r.value)
         assert 0 < r.expanded_uncertainty / r.value < 0.06
+
+
+def test_the_two_bench_labs_have_their_bench_as_scope():
+    """Each bench laboratory reports its own bench's points: its submission is complete for
+    its scope (docs/domain.md §10); the synthetic laboratories report every point."""
+    from coordination.demo import CURVILINEAR_LAB, LINEAR_LAB
+    from labs.selectors import participant_points, scope_text
+
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    comparison = Comparison.objects.get(code=DEMO_CODE)
+    n_points = comparison.measurement_points.count()
+    for (name, _, _), bench in ((LINEAR_LAB, "linear"), (CURVILINEAR_LAB, "curvilinear")):
+        participant = Participant.objects.get(comparison=comparison, laboratory__name=name)
+        assert scope_text(participant) == f"bench {bench}"
+        points = set(participant_points(participant).values_list("pk", flat=True))
+        assert points == set(
+            comparison.measurement_points.filter(bench=bench).values_list("pk", flat=True)
+        )
+        assert len(points) < n_points
+        reported = Result.objects.filter(submission__participant=participant)
+        assert set(reported.values_list("measurement_point_id", flat=True)) == points
+    synthetic = Participant.objects.get(comparison=comparison, laboratory__name=OUTLIER_LAB)
+    assert participant_points(synthetic).count() == n_points

@@ -167,6 +167,10 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 404 404 404 200 404 302 302 200",
     ),
+    "coordinator/<slug:code>/participants/<str:participant>/scope/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 404 404 404 200 404 302 302 200",
+    ),
     "coordinator/<slug:code>/participants/<str:participant>/reference/": Row(
         get="302 405 405 405 405 405 302 302 405",
         post="302 404 404 404 302 404 302 302 302",
@@ -400,6 +404,11 @@ TABLE: dict[str, Row] = {
         get="401 405 405 405 405 405 405 401 405",
         post="401 403 403 403 400 404 403 401 400",
     ),
+    "api/v1/comparisons/<slug:code>/participants/<str:participant>/scope/": Row(
+        get="401 403 403 403 200 404 403 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+        other={"PUT": "401 403 403 403 200 404 403 401 200"},
+    ),
     "api/v1/comparisons/<slug:code>/reports/": Row(
         get="401 200 200 200 200 404 200 401 200",
         post="401 403 403 403 400 404 403 401 400",
@@ -468,6 +477,11 @@ PUBLISHED: dict[str, Row] = {
     ),
     "api/v1/comparisons/<slug:code>/compatibility/": Row(
         get="401 200 200 200 200 404 200 401 200", post="", query="factor=axis"
+    ),
+    "api/v1/comparisons/<slug:code>/participants/<str:participant>/scope/": Row(
+        get="401 403 403 403 200 404 403 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+        other={"PUT": "401 403 403 403 200 404 403 401 200"},
     ),
     "api/v1/comparisons/<slug:code>/reports/": Row(
         get="401 200 200 200 200 404 200 401 200", post=""
