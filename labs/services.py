@@ -18,6 +18,7 @@ from django.utils import timezone
 
 from common.errors import InvalidTransition, KeyReused, StateConflict, ValidationFailed
 from common.points import format_number, point_label
+from common.sizes import counted
 from labs.importers import (
     ImportErrors,
     PointKey,
@@ -281,8 +282,9 @@ def _missing_error(missing: list[PointKey], table: ComparisonTable) -> Validatio
     scope = table.context.scope_text
     where = f" of your scope ({scope})" if table.context.scope is not None else ""
     return ValidationFailed(
-        f"{len(missing)} measurement point(s){where} have no result; a partial submission can "
-        "only be saved as a draft.",
+        f"{counted(len(missing), 'measurement point')}{where} "
+        f"{'has' if len(missing) == 1 else 'have'} no result; a partial submission can only be "
+        "saved as a draft.",
         errors=listed,
     )
 

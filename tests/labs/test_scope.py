@@ -274,7 +274,7 @@ def test_missing_points_lists_the_scope_only(world):
     assert response.status_code == 400
     body = response.json()
     assert body["detail"] == (
-        "3 measurement point(s) of your scope (bench linear) have no result; a partial "
+        "3 measurement points of your scope (bench linear) have no result; a partial "
         "submission can only be saved as a draft."
     )
     assert [e["message"] for e in body["errors"]] == [
@@ -290,7 +290,7 @@ def test_a_laboratory_without_scope_still_reports_every_point(world):
     linear = [p for p in participant_points(world.full) if p.bench == "linear"]
     response = client.post(f"{API}/submissions/", {"results": records(linear)}, format="json")
     assert response.status_code == 400
-    assert response.json()["detail"].startswith("4 measurement point(s) have no result;")
+    assert response.json()["detail"].startswith("4 measurement points have no result;")
     everything = records(participant_points(world.full))
     response = client.post(f"{API}/submissions/", {"results": everything}, format="json")
     assert response.status_code == 201

@@ -53,7 +53,7 @@ def test_partial_results_only_as_draft(setup):
         submission_from_records(
             participant=participant, records=rows(("X",)), source="web", user=user, submit=True
         )
-    assert "2 measurement point(s) have no result" in err.value.message
+    assert "2 measurement points have no result" in err.value.message
     assert {e["message"] for e in err.value.errors} == {
         "missing result for MEMS 1, Y, 5 Hz, linear vertical",
         "missing result for MEMS 1, Y, 10 Hz, linear vertical",

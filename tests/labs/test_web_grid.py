@@ -92,7 +92,7 @@ def test_partial_submit_is_refused_with_missing_points_listed(client, staff, par
     response = client.post(GRID, post_data({0: full()[0]}, action="submit"))
     assert response.status_code == 200
     body = visible(response)
-    assert "3 measurement point(s) have no result" in body
+    assert "3 measurement points have no result" in body
     assert "missing result for MEMS 1" in body
     assert body.count("result needed to submit") == 3
     assert not Submission.objects.exists()
