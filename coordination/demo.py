@@ -281,7 +281,9 @@ def _lab(
         user=user, laboratory=lab, defaults={"role": Membership.Role.STAFF}
     )
     # a new participant gets ``scope``; one from an earlier run of the demo keeps its own
-    (participant,) = participants_invite(comparison=comparison, laboratories=[lab], scope=scope)
+    (participant,) = participants_invite(
+        comparison=comparison, laboratories=[lab], scope=scope, notify=False
+    )
     return participant
 
 

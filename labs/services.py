@@ -186,13 +186,18 @@ def participant_scope_set(*, participant: Participant, scope: Scope) -> Particip
 
 @transaction.atomic
 def participants_invite(
-    *, comparison: Comparison, laboratories: Sequence[Laboratory], scope: Scope | None = None
+    *,
+    comparison: Comparison,
+    laboratories: Sequence[Laboratory],
+    scope: Scope | None = None,
+    notify: bool = True,
 ) -> list[Participant]:
     """Invite ``laboratories`` to ``comparison``, all or none, in one transaction; each new
     participant gets a random code (:func:`participant_code_new`) and ``scope`` (none: every
     point), an existing participation is returned unchanged, its scope too (so a repeated
     invitation is harmless; :func:`participant_scope_set` changes a scope). Each new
-    participant's laboratory is sent an invitation notice (docs/lifecycles.md §6)."""
+    participant's laboratory is sent an invitation notice (docs/lifecycles.md §6) unless
+    ``notify`` is False (the demo's data, loaded for a round long closed)."""
     if not laboratories:
         raise ValidationFailed(
             f"Choose at least one laboratory to invite to {comparison.code}.",
@@ -207,7 +212,8 @@ def participants_invite(
         before.add(participant.pk)
         if clean is not None:
             _scope_store(participant, clean)
-        notify_invited(participant)
+        if notify:
+            notify_invited(participant)
     return added
 
 

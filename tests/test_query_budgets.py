@@ -38,7 +38,7 @@ C1 = "SEC-C1"
 ROUTES: list[tuple[str, str, int, str]] = [
     # laboratory web pages
     ("a_staff", "/lab/", 9, ""),
-    ("a_staff", f"/lab/comparisons/{C1}/", 12, ""),
+    ("a_staff", f"/lab/comparisons/{C1}/", 13, ""),  # + the inbox badge and the scope
     ("a_staff", f"/lab/comparisons/{C1}/results/", 13, ""),
     ("a_staff", f"/lab/comparisons/{C1}/submissions/", 10, ""),
     ("a_staff", f"/lab/comparisons/{C1}/raw-data/", 13, ""),
@@ -54,7 +54,7 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("key_a", f"/api/v1/comparisons/{C1}/raw-data/", 6, ""),
     ("key_a", f"/api/v1/comparisons/{C1}/reports/", 4, "published"),
     # coordinator web pages
-    ("coord1", f"/coordinator/{C1}/", 11, ""),
+    ("coord1", f"/coordinator/{C1}/", 12, ""),  # + the notices list and the scopes
     ("coord1", f"/coordinator/{C1}/review/", 10, ""),
     ("coord1", f"/coordinator/{C1}/results/", 19, ""),
     ("coord1", f"/coordinator/{C1}/analysis/runs/", 11, ""),
