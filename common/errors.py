@@ -8,6 +8,7 @@ The JSON shape is the one promised in docs/interfaces.md §3:
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any
 
 import psycopg
@@ -39,6 +40,16 @@ class StateConflict(ApplicationError):
     """The object is not in a state that allows this (e.g. deadline passed, illegal transition)."""
 
     status_code = 409
+
+
+def refusal(check: Callable[[], object]) -> str | None:
+    """The message of the rule ``check`` raises (a page shows why its form is disabled),
+    or None when it passes."""
+    try:
+        check()
+    except ApplicationError as exc:
+        return exc.message
+    return None
 
 
 class InvalidTransition(StateConflict):

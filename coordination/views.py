@@ -21,7 +21,7 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
 
 from analysis.reports.services import report_notes_update
-from common.errors import ApplicationError
+from common.errors import ApplicationError, refusal
 from common.sizes import counted
 from coordination.confirm import ACTIONS, confirmation
 from coordination.forms import (
@@ -353,11 +353,7 @@ def participant_scope(
 
 
 def _scope_closed_reason(comparison: Comparison) -> str | None:
-    try:
-        labs_services.scope_change_check(comparison)
-    except ApplicationError as exc:
-        return exc.message
-    return None
+    return refusal(lambda: labs_services.scope_change_check(comparison))
 
 
 @login_required

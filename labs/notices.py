@@ -207,41 +207,32 @@ def notify_opened(comparison: Comparison) -> int:
     return made
 
 
-def notify_receipt(submission: Submission, n_results: int) -> Notice | None:
-    """The receipt of a submitted version: what was stored (count, version, checksum)."""
+def _about(submission: Submission, kind: str, key: str, **context: object) -> Notice | None:
+    """A notice about one submitted version, linking to the laboratory's page of it."""
     participant = submission.participant
-    return notify(
-        kind=K.RECEIPT,
-        participant=participant,
-        dedupe_key=f"receipt:{submission.pk}",
-        link=lab_submission_path(submission, participant.comparison),
-        context={"submission": submission, "n_results": n_results},
-    )
-
-
-def notify_decided(submission: Submission) -> Notice | None:
-    participant = submission.participant
-    kind = K.ACCEPTED if submission.status == Submission.Status.ACCEPTED else K.REJECTED
     return notify(
         kind=kind,
         participant=participant,
-        dedupe_key=f"decision:{submission.pk}",
+        dedupe_key=key,
         link=lab_submission_path(submission, participant.comparison),
-        context={"submission": submission},
+        context={"submission": submission, **context},
     )
+
+
+def notify_receipt(submission: Submission, n_results: int) -> Notice | None:
+    """The receipt of a submitted version: what was stored (count, version, checksum)."""
+    return _about(submission, K.RECEIPT, f"receipt:{submission.pk}", n_results=n_results)
+
+
+def notify_decided(submission: Submission) -> Notice | None:
+    kind = K.ACCEPTED if submission.status == Submission.Status.ACCEPTED else K.REJECTED
+    return _about(submission, kind, f"decision:{submission.pk}")
 
 
 def notify_check(submission: Submission, result_id: int, where: str) -> Notice | None:
     """A request to check one result, naming only its point (never the deviation); once
     per result."""
-    participant = submission.participant
-    return notify(
-        kind=K.CHECK,
-        participant=participant,
-        dedupe_key=f"check:{result_id}",
-        link=lab_submission_path(submission, participant.comparison),
-        context={"submission": submission, "where": where},
-    )
+    return _about(submission, K.CHECK, f"check:{result_id}", where=where)
 
 
 def reminders_send(*, now: dt.datetime | None = None) -> int:

@@ -23,7 +23,7 @@ from django.views.decorators.csrf import csrf_exempt, csrf_protect
 from django.views.decorators.http import require_GET, require_http_methods
 from django_htmx.http import HttpResponseClientRedirect
 
-from common.errors import NotVisible, RequestTooLarge, StateConflict, ValidationFailed
+from common.errors import NotVisible, RequestTooLarge, StateConflict, ValidationFailed, refusal
 from common.middleware import validates_own_text
 from labs import services
 from labs.access import comparisons_visible_to, managed_lab, managed_labs, participant_page
@@ -88,11 +88,7 @@ def _grid_source(participant: Participant) -> Submission | None:
 
 def _closed_reason(comparison: Comparison) -> str | None:
     """Why results cannot be stored now, in the service's own words (None when open)."""
-    try:
-        services.submission_window_check(comparison)
-    except StateConflict as exc:
-        return exc.message
-    return None
+    return refusal(lambda: services.submission_window_check(comparison))
 
 
 # --- dashboard and comparison --------------------------------------------------------------

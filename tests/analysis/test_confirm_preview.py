@@ -4,38 +4,17 @@ preview the reports before publication; nobody else sees either (404)."""
 from __future__ import annotations
 
 import io
-from io import StringIO
 
-import pytest
 from django.contrib.auth import get_user_model
 from django.core import mail
-from django.core.management import call_command
 from pypdf import PdfReader
 
 from analysis.models import Report
-from analysis.services import analysis_run_start
 from proficiency.models import Comparison, ComparisonStatus
 from tests.factories import ComparisonFactory, UserFactory
 
 CODE = "IMU-2024-DEMO"
 C = f"/coordinator/{CODE}/"
-
-
-@pytest.fixture
-def demo(db):
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code=CODE)
-
-
-@pytest.fixture
-def analysed(demo, django_capture_on_commit_callbacks):
-    with django_capture_on_commit_callbacks(execute=True):
-        run = analysis_run_start(comparison=demo, user=None)
-    run.refresh_from_db()
-    assert run.status == "succeeded", run.error
-    demo.refresh_from_db()
-    assert demo.status == ComparisonStatus.ANALYSED
-    return run
 
 
 def signed_in(client, username):
@@ -47,13 +26,13 @@ def text(pdf: bytes) -> str:
     return " ".join(" ".join(p.extract_text() for p in PdfReader(io.BytesIO(pdf)).pages).split())
 
 
-def test_publish_says_what_will_happen_and_changes_nothing(client, analysed):
+def test_publish_says_what_will_happen_and_changes_nothing(client, run):
     signed_in(client, "coordinator")
     response = client.get(C + "confirm/publish/")
     assert response.status_code == 200
     page = " ".join(response.content.decode().split())
     assert (
-        f"The results of analysis run {analysed.pk} become visible to the 12 participating "
+        f"The results of analysis run {run.pk} become visible to the 12 participating "
         "laboratories" in page
     )
     assert "12 laboratories are e-mailed, with links to their results and reports." in page
@@ -97,7 +76,7 @@ def test_a_fresh_round_counts_its_invited_laboratories(client, db):
     assert "close it before running the analysis" in run
 
 
-def test_confirmations_and_previews_are_the_coordinators_only(client, analysed):
+def test_confirmations_and_previews_are_the_coordinators_only(client, run):
     other = UserFactory.create()
     ComparisonFactory.create().coordinators.add(other)
     for who in (other, get_user_model().objects.get(username="lab03")):
@@ -106,10 +85,10 @@ def test_confirmations_and_previews_are_the_coordinators_only(client, analysed):
             assert client.get(C + url).status_code == 404, (who, url)
 
 
-def test_the_preview_is_rendered_not_stored(client, analysed):
+def test_the_preview_is_rendered_not_stored(client, run):
     signed_in(client, "coordinator")
     listing = client.get(C + "reports/preview/").content.decode()
-    assert f"from analysis run {analysed.pk}" in listing
+    assert f"from analysis run {run.pk}" in listing
     assert listing.count("Preview PDF") == 13  # the summary and 12 participants
     response = client.get(C + "reports/preview/summary.pdf")
     assert response.status_code == 200 and response["Content-Type"] == "application/pdf"
@@ -117,7 +96,7 @@ def test_the_preview_is_rendered_not_stored(client, analysed):
     summary = text(response.content)
     assert "Preview for the coordinator (not issued" in summary
     assert "Summary report" in summary
-    code = analysed.comparison.participants.order_by("code").first().code
+    code = run.comparison.participants.order_by("code").first().code
     own = text(client.get(f"{C}reports/preview/{code}.pdf").content)
     assert "Participant report" in own and code in own
     assert client.get(C + "reports/preview/NOBODY.pdf").status_code == 404

@@ -1,34 +1,15 @@
 """Coordinator web pages: every page × persona, setup (create, devices, grid, overrides,
 invitations, reference, open/close) and review (accept, reject, ask to check)."""
 
-from io import StringIO
-
 import pytest
 from django.contrib.auth import get_user_model
 from django.core import mail
-from django.core.management import call_command
 
-from analysis.services import analysis_run_start
 from labs.models import Laboratory, Participant, Submission
 from proficiency.models import Comparison, MeasurementPoint
 from tests.factories import ComparisonFactory, UserFactory
 
 CODE = "IMU-2024-DEMO"
-
-
-@pytest.fixture
-def demo(db):
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code=CODE)
-
-
-@pytest.fixture
-def analysed(demo, django_capture_on_commit_callbacks):
-    with django_capture_on_commit_callbacks(execute=True):
-        run = analysis_run_start(comparison=demo, user=None)
-    run.refresh_from_db()
-    assert run.status == "succeeded", run.error
-    return run
 
 
 def user(name):
@@ -61,14 +42,12 @@ def coordinator_pages(demo, run):
     ("persona", "expected"),
     [(None, 302), ("coordinator", 200), ("other", 404), ("lab03", 404), ("admin", 200)],
 )
-def test_every_coordinator_page_by_persona(
-    client, demo, analysed, other_coordinator, persona, expected
-):
+def test_every_coordinator_page_by_persona(client, demo, run, other_coordinator, persona, expected):
     if persona == "other":
         client.force_login(other_coordinator)
     elif persona:
         client.force_login(user(persona))
-    for url in coordinator_pages(demo, analysed):
+    for url in coordinator_pages(demo, run):
         response = client.get(url)
         assert response.status_code == expected, url
         if expected == 302:

@@ -3,12 +3,10 @@ results tables, downloads, publication and the participants' anonymised pages.""
 
 import csv
 import io
-from io import StringIO
 
 import openpyxl
 import pytest
 from django.contrib.auth import get_user_model
-from django.core.management import call_command
 
 from analysis.models import AnalysisRun, Score
 from analysis.services import analysis_run_start
@@ -19,21 +17,6 @@ from proficiency.models import Comparison
 CODE = "IMU-2024-DEMO"
 C = f"/coordinator/{CODE}/"
 LAB_NAMES = [b"Bench Calibration Laboratory", b"Alpine Vibration", b"Outlier Metrology"]
-
-
-@pytest.fixture
-def demo(db):
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code=CODE)
-
-
-@pytest.fixture
-def run(demo, django_capture_on_commit_callbacks):
-    with django_capture_on_commit_callbacks(execute=True):
-        started = analysis_run_start(comparison=demo, user=None)
-    started.refresh_from_db()
-    assert started.status == "succeeded", started.error
-    return started
 
 
 def login(client, name):

@@ -3,36 +3,16 @@ place of its uncertainty's second significant digit, scores as the PDF, the unit
 column headings; float noise planted in the database never reaches the page."""
 
 import re
-from io import StringIO
 
-import pytest
 from django.contrib.auth import get_user_model
-from django.core.management import call_command
 from django.urls import reverse
 
-from analysis.models import AnalysisRun, AssignedValue, Score
-from analysis.services import analysis_run_start
+from analysis.models import AssignedValue, Score
 from labs.models import Result, Submission
-from proficiency.models import Comparison
 
 CODE = "IMU-2024-DEMO"
 C = f"/coordinator/{CODE}/"
 NOISE = re.compile(r"\d\.\d{10,}")  # ten decimals or more: float noise, not a measurement
-
-
-@pytest.fixture
-def demo(db):
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code=CODE)
-
-
-@pytest.fixture
-def run(demo, django_capture_on_commit_callbacks) -> AnalysisRun:
-    with django_capture_on_commit_callbacks(execute=True):
-        started = analysis_run_start(comparison=demo, user=None)
-    started.refresh_from_db()
-    assert started.status == "succeeded", started.error
-    return started
 
 
 def login(client, name):
