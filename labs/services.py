@@ -96,10 +96,23 @@ class _CleanScope:
     frequencies_hz: list[float]
 
 
+#: The most values one level of a scope may list (a round has far fewer levels)
+SCOPE_MAX_VALUES = 1_000
+
+
 def _scope_clean(comparison: Comparison, scope: Scope) -> _CleanScope:
     """The scope checked against ``comparison``: its devices, known benches and axes, and
     frequencies of its points (taken at the points' value); ValidationFailed naming every
     bad value, and when the comparison has points but the scope holds none of them."""
+    too_many = [
+        {"row": None, "field": name,
+         "message": f"{len(values)} values; a scope lists at most {SCOPE_MAX_VALUES}"}
+        for name, values in (("devices", scope.devices), ("benches", scope.benches),
+                             ("axes", scope.axes), ("frequencies_hz", scope.frequencies_hz))
+        if len(values) > SCOPE_MAX_VALUES
+    ]  # fmt: skip
+    if too_many:  # before any check: its work and its answer stay bounded
+        raise ValidationFailed("The scope lists too many values.", errors=too_many)
     errors: list[dict[str, object]] = []
     by_name = {" ".join(d.name.split()).casefold(): d for d in comparison.devices.all()}
     devices: list[Device] = []
