@@ -241,7 +241,9 @@ def _recomputation_create(record: RawRecord, result: Result) -> RawRecomputation
         reported_expanded_uncertainty=result.expanded_uncertainty,
         reported_coverage_factor=result.coverage_factor,
     )
-    transaction.on_commit(lambda: raw_recompute_task.delay(record.pk))
+    # With the broker unreachable the row stays pending and raw_sweep sends it again.
+    what = f"raw recomputation of record {record.pk}"
+    transaction.on_commit(lambda: jobs.send(raw_recompute_task, (record.pk,), what=what))
     return recomputation
 
 

@@ -267,3 +267,24 @@ def test_the_upload_service_takes_values_not_a_form(world, django_capture_on_com
             sidecar=SimpleUploadedFile("run1.bin.json", sidecar(record)), user=None,
         )  # fmt: skip
     assert RawRecord.objects.get() == stored
+
+
+def test_an_upload_stands_when_its_recomputation_cannot_be_sent(
+    client, world, monkeypatch, caplog, django_capture_on_commit_callbacks
+):
+    """The broker unreachable after the upload's commit: the upload is answered and kept,
+    the recomputation stays pending (for raw_sweep), and the one handler logs it."""
+    from kombu.exceptions import OperationalError
+
+    def refused(args, kwargs=None, **options):
+        raise OperationalError("Connection refused.")
+
+    monkeypatch.setattr("labs.tasks.raw_recompute_task.apply_async", refused)
+    client.force_login(world["a"])
+    with django_capture_on_commit_callbacks(execute=True):
+        response = upload(client, linear(duration=5.0))
+    record = RawRecord.objects.get()
+    assert response.status_code == 302
+    assert record.recomputation.status == "pending"
+    assert f"raw recomputation of record {record.pk}" in caplog.text
+    assert "broker unreachable" in caplog.text
