@@ -5,6 +5,7 @@ from analysis.models import (
     AnalysisRun,
     AssignedValue,
     CompatibilityMatrix,
+    Publication,
     Report,
     ReportBatch,
     ReportDownload,
@@ -67,6 +68,15 @@ class ReportBatchAdmin(RecordedByServicesAdmin):
     list_filter = ["status", "kind", "report_status", "comparison"]
     search_fields = ["comparison__code", "error"]
     raw_id_fields = ["run"]
+
+
+@admin.register(Publication)
+class PublicationAdmin(RecordedByServicesAdmin):
+    list_display = ["id", "comparison", "run", "status", "progress", "stage", "attempts",
+                    "created_at", "finished_at"]  # fmt: skip
+    list_filter = ["status", "comparison"]
+    search_fields = ["comparison__code", "error"]
+    raw_id_fields = ["run", "requested_by"]
 
 
 @admin.register(CompatibilityMatrix)

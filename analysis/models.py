@@ -422,3 +422,67 @@ class ReportDownload(models.Model):
 
     def __str__(self) -> str:
         return f"{self.report} downloaded at {self.at:%Y-%m-%d %H:%M}"
+
+
+class Publication(models.Model):
+    """A persisted job publishing a comparison's current run (docs/lifecycles.md §1):
+    ``pending → running → succeeded | failed``.
+
+    The task renders every final report first (``progress`` and ``stage`` per report),
+    and only then, in one transaction, publishes: the status, the final reports stored as
+    current, the preliminary ones superseded, the participants' notices.  A failure
+    publishes nothing and keeps its ``error``; the comparison stays analysed.  At most one
+    publication of a comparison is pending or running.  Claimed, kept alive and re-queued
+    by the protocol of ``common.jobs``: ``token`` (random, new at every claim),
+    ``claimed_by`` (the Celery id of the task holding it, or of the task last sent) and
+    ``heartbeat_at``.
+    """
+
+    class Status(models.TextChoices):
+        PENDING = "pending", "Pending"
+        RUNNING = "running", "Running"
+        SUCCEEDED = "succeeded", "Succeeded"
+        FAILED = "failed", "Failed"
+
+    comparison = models.ForeignKey(
+        Comparison, on_delete=models.CASCADE, related_name="publications"
+    )
+    run = models.ForeignKey(
+        AnalysisRun, on_delete=models.CASCADE, related_name="publications",
+        help_text="the current run when publication was asked for: the run published",
+    )  # fmt: skip
+    requested_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL
+    )
+    status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
+    progress = models.PositiveSmallIntegerField(default=0)
+    stage = models.CharField(max_length=80, blank=True)
+    error = models.TextField(blank=True)
+    report_ids = models.JSONField(default=list, blank=True, help_text="the final reports issued")
+    attempts = models.PositiveSmallIntegerField(default=0, help_text="claims so far")
+    token = models.CharField(max_length=32, blank=True, help_text="the current claim")
+    claimed_by = models.CharField(
+        max_length=64, blank=True, help_text="task id of the claim, or of the task last sent"
+    )
+    heartbeat_at = models.DateTimeField(
+        null=True, blank=True, help_text="last sign of life of its task (or when it was sent)"
+    )
+    created_at = models.DateTimeField(auto_now_add=True)
+    started_at = models.DateTimeField(null=True, blank=True)
+    finished_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["-created_at", "-pk"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["comparison"],
+                condition=Q(status__in=["pending", "running"]),
+                name="publication_one_active",
+            ),
+            models.CheckConstraint(
+                condition=Q(progress__lte=100), name="publication_progress_le_100"
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"Publication {self.pk} of {self.comparison.code} ({self.status})"

@@ -60,6 +60,16 @@ def analysis_finish_task(run_id: int) -> str:
     return analysis_run_finish(run_id=run_id)
 
 
+@shared_task(bind=True, **_TASK)
+def publication_task(self, publication_id: int) -> str:
+    """Publish: claim publication ``publication_id``, render every final report, then
+    publish in one transaction (or fail, publishing nothing); its status at the end."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
+    from analysis.publication import publication_execute
+
+    return publication_execute(publication_id=publication_id, delivery=self.request.id or "")
+
+
 @shared_task(soft_time_limit=120, time_limit=180)
 def reports_pending_task() -> int:
     """Celery beat: queue the reports of published comparisons that still miss some."""
@@ -71,12 +81,17 @@ def reports_pending_task() -> int:
 
 @shared_task(soft_time_limit=50, time_limit=60)
 def jobs_sweep_task() -> dict[str, int]:
-    """Celery beat (``JOB_SWEEP_SECONDS``): re-queue analysis runs, raw-data recomputations
-    and report batches whose worker was lost (heartbeat older than ``JOB_STALE_SECONDS``)
-    or whose message was; the counts of tasks sent."""
+    """Celery beat (``JOB_SWEEP_SECONDS``): re-queue analysis runs, raw-data recomputations,
+    report batches and publications whose worker was lost (heartbeat older than
+    ``JOB_STALE_SECONDS``) or whose message was; the counts of tasks sent."""
     # in the body: the service modules import this one to enqueue the task (a cycle)
+    from analysis.publication import publications_sweep
     from analysis.reports.services import report_batches_sweep
     from analysis.services import analysis_sweep
     from labs.raw_services import raw_sweep
 
-    return analysis_sweep() | {"raw": raw_sweep(), "reports": report_batches_sweep()}
+    return analysis_sweep() | {
+        "raw": raw_sweep(),
+        "reports": report_batches_sweep(),
+        "publications": publications_sweep(),
+    }

@@ -18,6 +18,12 @@ urlpatterns = [
     path(C + "analysis/runs/<int:pk>/progress/", views.run_progress, name="run_progress"),
     path(C + "analysis/runs/<int:pk>/cancel/", views.run_cancel, name="run_cancel"),
     path(C + "publish/", views.publish, name="publish"),
+    path(C + "publication/<int:pk>/", views.publication, name="publication"),
+    path(
+        C + "publication/<int:pk>/progress/",
+        views.publication_progress,
+        name="publication_progress",
+    ),
 ]
 
 for prefix, base, audience in (("", C, COORD), ("lab_", P, LAB)):

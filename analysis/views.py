@@ -1,5 +1,6 @@
 """Analysis and results web pages: run button, live progress, runs list, results
-(assigned values, scores with downloads, charts, compatibility heat maps) and publication.
+(assigned values, scores with downloads, charts, compatibility heat maps) and publication
+(asked for here, run in the background, its progress polled like a run's).
 
 The results pages serve two audiences with the same views and templates:
 
@@ -25,8 +26,8 @@ from django.views.decorators.http import require_GET, require_POST
 
 from analysis import charts
 from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
-from analysis.models import AnalysisRun, AssignedValue, Score
-from analysis.publication import comparison_publish
+from analysis.models import AnalysisRun, AssignedValue, Publication, Score
+from analysis.publication import active_publication, publication_start
 from analysis.selectors import (
     EXACT_MAX,
     approximate_subsets,
@@ -189,17 +190,40 @@ def run_cancel(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpRes
 @login_required
 @require_POST
 def publish(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
+    """Ask for publication (after the confirmation page): refused at once with its reason,
+    else the job's progress page, where the publication runs in the background."""
     comparison = coordinated(request, code)
-    if current_run(comparison) is None:
-        messages.error(request, f"{code} has no successful analysis run to publish.")
-        return redirect("coordinator:comparison", code=code)
     try:
-        comparison_publish(comparison=comparison, user=request.user)
+        publication = publication_start(comparison=comparison, user=request.user)
     except ApplicationError as exc:
         messages.error(request, exc.message)
-    else:
-        messages.success(request, f"{code} is published; the participants were told by e-mail.")
-    return redirect("coordinator:results", code=code)
+        if (active := active_publication(comparison)) is not None:
+            return redirect("coordinator:publication", code=code, pk=active.pk)
+        return redirect("coordinator:comparison", code=code)
+    return redirect("coordinator:publication", code=code, pk=publication.pk)
+
+
+def _publication(request: AuthenticatedHttpRequest, code: str, pk: int) -> Publication:
+    comparison = coordinated(request, code)
+    found = comparison.publications.select_related("comparison", "run", "requested_by")
+    return get_object_or_404(found, pk=pk)
+
+
+@login_required
+@require_GET
+def publication(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
+    job = _publication(request, code, pk)
+    context = {"comparison": job.comparison, "publication": job}
+    return render(request, "analysis/publication.html", context)
+
+
+@login_required
+@require_GET
+def publication_progress(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
+    """The progress partial, polled by htmx: reads the job's row."""
+    job = _publication(request, code, pk)
+    context = {"comparison": job.comparison, "publication": job}
+    return render(request, "analysis/_publication_progress.html", context)
 
 
 # --- results pages (both audiences) -------------------------------------------------------

@@ -28,6 +28,7 @@ PATH_TAGS = (
     ("/participants", "round set-up (coordinators)"),
     ("/transition", "round life cycle (coordinators)"),
     ("/publish", "round life cycle (coordinators)"),
+    ("/publications", "round life cycle (coordinators)"),
     ("/decision", "review (coordinators)"),
     ("/check-requests", "review (coordinators)"),
 )

@@ -254,6 +254,11 @@ SPECTACULAR_SETTINGS = {
         "authenticates with `Authorization: Api-Key <key>`; browsers use the session."
     ),
     "VERSION": "1",
+    # the publish answer holds two statuses (the comparison's, its publication job's): named
+    "ENUM_NAME_OVERRIDES": {
+        "ComparisonStatusEnum": "proficiency.models.ComparisonStatus",
+        "PublicationStatusEnum": "analysis.models.Publication.Status",
+    },
     "SERVE_INCLUDE_SCHEMA": False,
     "SWAGGER_UI_DIST": "SIDECAR",
     "SWAGGER_UI_FAVICON_HREF": "SIDECAR",

@@ -141,8 +141,10 @@ def _publish(c: Comparison) -> Confirmation:
             f"{_labs(c)}, each seeing the others by code only.",
             f"{counted(n, 'laboratory', 'laboratories')} are e-mailed, with links to their "
             "results and reports.",
-            f"The final reports are issued in the background (the summary and "
-            f"{counted(n, 'participant report')})"
+            f"The final reports are rendered in the background first (the summary and "
+            f"{counted(n, 'participant report')}); the results are published, and the "
+            "laboratories e-mailed, only once every report is ready, and nothing is if one "
+            "fails"
             + (
                 f"; {counted(preliminary, 'preliminary report')} "
                 f"{'is' if preliminary == 1 else 'are'} superseded by them."

@@ -42,19 +42,26 @@ def comparison_allowed_transitions(comparison: Comparison) -> list[str]:
     return sorted(COMPARISON_TRANSITIONS[comparison.status])
 
 
+def comparison_transition_check(*, comparison: Comparison, to: str) -> None:
+    """InvalidTransition unless the life cycle allows ``comparison`` (as given: the caller
+    reads it under its lock) to go to ``to``; a move made later (publication, in the
+    background) is refused up front with the message the move itself would give."""
+    if to not in S.values:
+        raise InvalidTransition(f"Unknown comparison status {to!r}; known: {', '.join(S.values)}.")
+    allowed = COMPARISON_TRANSITIONS[comparison.status]
+    if to not in allowed:
+        nexts = ", ".join(sorted(allowed)) or "none (published is final)"
+        raise InvalidTransition(
+            f"Comparison {comparison.code} cannot go from {comparison.status} to {to}; "
+            f"allowed next status: {nexts}."
+        )
+
+
 @transaction.atomic
 def comparison_transition(*, comparison: Comparison, to: str) -> Comparison:
     """Move a comparison to status ``to`` if the life cycle allows it, under a row lock."""
     locked = Comparison.objects.select_for_update().get(pk=comparison.pk)
-    if to not in S.values:
-        raise InvalidTransition(f"Unknown comparison status {to!r}; known: {', '.join(S.values)}.")
-    allowed = COMPARISON_TRANSITIONS[locked.status]
-    if to not in allowed:
-        nexts = ", ".join(sorted(allowed)) or "none (published is final)"
-        raise InvalidTransition(
-            f"Comparison {locked.code} cannot go from {locked.status} to {to}; "
-            f"allowed next status: {nexts}."
-        )
+    comparison_transition_check(comparison=locked, to=to)
     if to == S.OPEN and not locked.measurement_points.exists():
         raise InvalidTransition(
             f"Comparison {locked.code} has no measurement points; add them before opening it."

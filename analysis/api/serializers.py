@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from django.urls import reverse
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
-from analysis.models import AnalysisRun, Score
+from analysis.models import AnalysisRun, Publication, Score
 from labs.models import Submission
 from proficiency.models import AssignedValueMethod, Comparison, SigmaPtMode
 
@@ -80,6 +81,34 @@ class ComparisonStateSerializer(serializers.ModelSerializer):
     class Meta:
         model = Comparison
         fields = ["code", "status", "submission_deadline"]
+        read_only_fields = fields
+
+
+class PublicationSerializer(serializers.ModelSerializer):
+    comparison = serializers.CharField(source="comparison.code")
+    url = serializers.SerializerMethodField(help_text="this job in the API")
+
+    class Meta:
+        model = Publication
+        fields = [
+            "id", "url", "comparison", "run", "status", "progress", "stage", "error",
+            "report_ids", "created_at", "started_at", "finished_at",
+        ]  # fmt: skip
+        read_only_fields = fields
+
+    def get_url(self, job: Publication) -> str:
+        path = reverse("publication-detail", args=[job.pk])
+        request = self.context.get("request")
+        return request.build_absolute_uri(path) if request is not None else path
+
+
+class PublishAnswerSerializer(ComparisonStateSerializer):
+    """The answer of ``publish``: the comparison's keys and its ``publication`` job."""
+
+    publication = PublicationSerializer(read_only=True)
+
+    class Meta(ComparisonStateSerializer.Meta):
+        fields = [*ComparisonStateSerializer.Meta.fields, "publication"]
         read_only_fields = fields
 
 

@@ -23,6 +23,7 @@ urlpatterns = [
         name="compatibility",
     ),
     path("comparisons/<slug:code>/publish/", views.Publish.as_view(), name="publish"),
+    path("publications/<int:pk>/", views.PublicationDetail.as_view(), name="publication-detail"),
     path(
         "comparisons/<slug:code>/transition/",
         views.ComparisonTransition.as_view(),

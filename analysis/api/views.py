@@ -18,9 +18,9 @@ from rest_framework.response import Response
 
 from analysis.api import serializers as s
 from analysis.core.groups import CoreInputError
-from analysis.models import AnalysisRun, Score
+from analysis.models import AnalysisRun, Publication, Score
 from analysis.pipeline import matrix_record
-from analysis.publication import comparison_publish
+from analysis.publication import publication_start
 from analysis.selectors import SCORE_FILTERS, current_run, lab_matrices, run_matrices, run_scores
 from analysis.services import analysis_run_cancel, analysis_run_start
 from common.errors import NotVisible, StateConflict, ValidationFailed
@@ -196,16 +196,34 @@ class ComparisonTransition(ApiView):
 
 
 class Publish(ApiView):
-    """Publish the analysed results: participants see them and are notified."""
+    """Ask for publication (coordinators): 202 with the comparison (still analysed until
+    the job publishes it) and the ``publication`` job, whose ``url`` shows its progress.
+    409 at once when it cannot be published, or while a publication is under way."""
 
-    @extend_schema(request=None, responses={200: s.ComparisonStateSerializer})
+    @extend_schema(request=None, responses={202: s.PublishAnswerSerializer})
     def post(self, request: Request, code: str) -> Response:
         access = self.access(code)
         require_coordinator(access)
-        if current_run(access.comparison) is None:
-            raise StateConflict(f"{code} has no successful analysis run to publish.")
-        c = comparison_publish(comparison=access.comparison, user=request.user)
-        return Response(s.ComparisonStateSerializer(c).data)
+        # require_coordinator passed: a person (keys never coordinate)
+        job = publication_start(comparison=access.comparison, user=cast(User, request.user))
+        job = Publication.objects.select_related("comparison").get(pk=job.pk)  # eager: ended
+        answer = s.ComparisonStateSerializer(job.comparison).data | {
+            "publication": s.PublicationSerializer(job, context={"request": request}).data
+        }
+        return Response(answer, status=status.HTTP_202_ACCEPTED)
+
+
+class PublicationDetail(ApiView):
+    """Status, progress 0–100, stage and error of one publication (coordinators)."""
+
+    @extend_schema(responses=s.PublicationSerializer)
+    def get(self, request: Request, pk: int) -> Response:
+        job = Publication.objects.filter(
+            pk=pk, comparison__in=comparisons_for(caller_of(request))
+        ).select_related("comparison").first()  # fmt: skip
+        if job is None or not self.access(job.comparison.code).is_coordinator:
+            raise NotVisible(f"No publication {pk} is visible to you.")
+        return Response(s.PublicationSerializer(job, context={"request": request}).data)
 
 
 class DecisionSerializer(serializers.Serializer):

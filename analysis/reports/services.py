@@ -3,13 +3,16 @@
 A report is never changed once stored: a reissue is a new version, and the older
 versions are kept with ``superseded = True``.  A report records the status it was
 issued for (``Report.status``: preliminary while analysed, final once published, read
-under the issuing lock); publication supersedes every preliminary report in its own
-transaction and the report tasks then issue the final ones, so a preliminary report is
-never the current report of a published comparison.
+under the issuing lock).  Publication renders every final report before it publishes
+(:func:`final_reports_render`) and, in its one transaction, stores them as the current
+versions and supersedes every preliminary one (:func:`final_reports_store`), so a
+preliminary report is never the current report of a published comparison.
 
-The fan-out's tasks work under job rows (``ReportBatch``: the summary, and each batch of
-participants), claimed, kept alive, ended and re-queued by the protocol of ``common.jobs``
-(docs/lifecycles.md §4).
+The fan-out (``reports_issue_all_task``) issues the reports still missing from a
+published comparison (one deleted since, or a round published before publication rendered
+its reports itself), sent again by Celery beat while any is missing.  Its tasks work
+under job rows (``ReportBatch``: the summary, and each batch of participants), claimed,
+kept alive, ended and re-queued by the protocol of ``common.jobs`` (docs/lifecycles.md §4).
 """
 
 from __future__ import annotations
@@ -17,7 +20,8 @@ from __future__ import annotations
 import hashlib
 import logging
 import secrets
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from functools import partial
 from typing import Any
 
@@ -601,17 +605,10 @@ def report_batches_sweep() -> int:
     return sent
 
 
-def reports_enqueue(*, comparison_id: int) -> None:
-    """After commit: one Celery task per report, as a group.  When the broker cannot be
-    reached the publication stands and :func:`reports_pending_enqueue` (Celery beat)
-    sends the task once it is back: the published comparison is the outbox."""
-    transaction.on_commit(lambda: _send_reports_task(comparison_id))
-
-
 def _send_reports_task(comparison_id: int) -> bool:
-    """Send the fan-out; with the broker unreachable it is logged and the publication
-    stands (``common.jobs.send``): the published comparison still missing reports is what
-    :func:`reports_pending_enqueue` sends again."""
+    """Send the fan-out; with the broker unreachable it is logged (``common.jobs.send``):
+    the published comparison still missing reports is what :func:`reports_pending_enqueue`
+    sends again."""
     what = f"reports of comparison {comparison_id}"
     return jobs.send(reports_issue_all_task, (comparison_id,), what=what)
 
@@ -644,3 +641,104 @@ def reports_pending_enqueue() -> int:
     is safe."""
     pending = Comparison.objects.filter(status=ComparisonStatus.PUBLISHED).order_by("pk")
     return sum(_send_reports_task(c.pk) for c in pending if reports_missing(c) > 0)
+
+
+# --- the final reports of a publication, rendered before it (docs/lifecycles.md §1, §4) ---
+
+
+@dataclass(frozen=True)
+class FinalReports:
+    """The final reports of a run rendered before publication: unsaved rows, their files
+    written, and the edition each prints (None: the summary)."""
+
+    reports: list[Report]
+    editions: dict[int | None, int]
+
+
+def final_reports_render(
+    *, run: AnalysisRun, progress: Callable[[int, int], object] | None = None
+) -> FinalReports:
+    """Render every final report of ``run`` (the summary, then the participants in code
+    order, their rows read a batch at a time) while its comparison is still analysed:
+    the status "final" is given to the renderer, so the bytes are those a report issued
+    after publication has (same number, same sha256).  Each PDF is written to storage at
+    once; the rows are returned unsaved: :func:`final_reports_store` saves them in the
+    publication's transaction, :func:`final_reports_discard` deletes the files of a
+    publication that did not happen (and of every report rendered before an error here).
+    ``progress(done, total)`` after each report."""
+    comparison = run.comparison
+    ids = list(comparison.participants.order_by("code").values_list("pk", flat=True))
+    total, staged = 1 + len(ids), list[Report]()
+    editions = _final_editions(run)
+    try:
+        context, common = run_context(run), comparison_common(comparison)
+        summary = report_data(run=run, edition=editions[None], common=common, context=context,
+                              status=Report.Status.FINAL)  # fmt: skip
+        staged.append(_stage(run, Report.Kind.SUMMARY, None, render_report(summary)))
+        if progress is not None:
+            progress(len(staged), total)
+        for batch in _in_batches(ids, _batch_size(None)):
+            participants = Participant.objects.in_bulk(batch)
+            own = participant_rows(run, context, batch) if context.rows is None else {}
+            _round_charts_build(run, participants[batch[0]], own, common, context)
+            for pk in batch:
+                data = report_data(
+                    run=run, participant=participants[pk], edition=editions[pk],
+                    own=own.get(pk), common=common, context=context, status=Report.Status.FINAL,
+                )  # fmt: skip
+                staged.append(_stage(run, Report.Kind.PARTICIPANT, participants[pk],
+                                     render_report(data)))  # fmt: skip
+                if progress is not None:
+                    progress(len(staged), total)
+    except BaseException:
+        final_reports_discard(FinalReports(staged, editions))
+        raise
+    return FinalReports(staged, editions)
+
+
+def _final_editions(run: AnalysisRun) -> dict[int | None, int]:
+    """The edition each report of ``run`` prints (None: the summary), from the versions
+    issued so far (:func:`report_edition`)."""
+    history: dict[int | None, list[int | None]] = {}
+    rows = Report.objects.filter(comparison_id=run.comparison_id).order_by("version", "pk")
+    for participant_id, run_id in rows.values_list("participant_id", "run_id"):
+        history.setdefault(participant_id, []).append(run_id)
+    ids = run.comparison.participants.values_list("pk", flat=True)
+    return {pk: report_edition(history.get(pk, []), run) for pk in [None, *ids]}
+
+
+def _stage(run: AnalysisRun, kind: str, participant: Participant | None, pdf: bytes) -> Report:
+    """The unsaved row of a rendered report, its file written (version 0 until stored)."""
+    report = Report(
+        comparison=run.comparison, run=run, kind=kind, participant=participant, version=0,
+        status=Report.Status.FINAL, sha256=hashlib.sha256(pdf).hexdigest(), size=len(pdf),
+        software_version=proficiency.__version__,
+    )  # fmt: skip
+    report.file.save(f"{report.token}.pdf", ContentFile(pdf), save=False)
+    return report
+
+
+def final_reports_store(*, run: AnalysisRun, rendered: FinalReports) -> list[Report]:
+    """Publication's step, in its transaction (the comparison's row locked by it): save
+    the reports :func:`final_reports_render` made as the current versions, superseding
+    every older one.  Refused (nothing saved) when a report was issued meanwhile for
+    another run, which would change the edition printed in them."""
+    if _final_editions(run) != rendered.editions:
+        raise StateConflict(
+            f"Reports of {run.comparison.code} were issued for another run meanwhile; "
+            "publish again."
+        )
+    older = Report.objects.filter(comparison_id=run.comparison_id)
+    last = older.order_by().values("kind", "participant_id").annotate(v=Max("version"))
+    versions = {(r["kind"], r["participant_id"]): r["v"] for r in last}
+    for report in rendered.reports:
+        report.version = versions.get((report.kind, report.participant_id), 0) + 1
+    older.filter(superseded=False).update(superseded=True)
+    return Report.objects.bulk_create(rendered.reports)
+
+
+def final_reports_discard(rendered: FinalReports) -> None:
+    """Delete the files of rendered reports that were not stored."""
+    for report in rendered.reports:
+        if report.file:
+            report.file.delete(save=False)

@@ -1,7 +1,8 @@
 """The broker unreachable when a task is sent: one handler (``common.jobs.send``), and each
 caller's outcome: a new analysis run fails with a clear error; a later step of a run, or a
-sweep's resend, is left for the next sweep; a publication stands and Celery beat's
-``reports_pending_task`` sends its reports later (eager Celery; SQLite or PostgreSQL).
+sweep's resend, is left for the next sweep; a new publication fails with a clear error and
+publishes nothing; a published round's missing reports are sent later by Celery beat's
+``reports_pending_task`` (eager Celery; SQLite or PostgreSQL).
 
 The broker's failure is ``apply_async`` raising what kombu raises for a refused
 connection; tests/faults/test_broker_down.py cuts a real one."""
@@ -17,11 +18,13 @@ from kombu.exceptions import OperationalError
 
 from analysis import services
 from analysis.models import AnalysisRun, Report, ReportBatch
-from analysis.publication import comparison_publish
+from analysis.publication import BROKER_UNREACHABLE, publication_start
 from analysis.reports.services import reports_missing, reports_pending_enqueue
 from analysis.services import analysis_run_start, analysis_sweep
 from common import jobs
+from labs.models import Notice
 from proficiency.models import Comparison
+from tests.analysis.reports.conftest import published_missing_reports
 
 pytestmark = pytest.mark.django_db(transaction=True)
 REFUSED = "Error 111 connecting to 127.0.0.1:6399. Connection refused."
@@ -145,15 +148,40 @@ def test_a_lost_pending_run_is_not_failed_by_the_sweep_with_the_broker_down(
     assert run.status == "succeeded"
 
 
-def test_a_publication_stands_when_its_reports_cannot_be_sent(demo, monkeypatch, caplog):
+def test_a_publication_whose_task_cannot_be_sent_fails_and_publishes_nothing(
+    demo, monkeypatch, caplog
+):
+    """The job fails at once with the reason (never pending for ever, blocking the next
+    request); the round stays analysed, nobody is told; publishing again works."""
+    stand_in_pdf(monkeypatch)
+    analysis_run_start(comparison=demo, user=None)
+    attempts = broker_down(monkeypatch, "analysis.tasks.publication_task")
+    with caplog.at_level(logging.ERROR, logger="common.jobs"):
+        job = publication_start(comparison=demo)
+    job.refresh_from_db()
+    assert attempts == [(job.pk,)]
+    assert (job.status, job.error) == ("failed", BROKER_UNREACHABLE)
+    assert f"publication {job.pk}: analysis.tasks.publication_task not queued" in caplog.text
+    demo.refresh_from_db()
+    assert demo.status == "analysed"
+    assert not Report.objects.exists() and not Notice.objects.filter(kind="published").exists()
+    monkeypatch.undo()  # the broker is back
+    stand_in_pdf(monkeypatch)
+    again = publication_start(comparison=demo)
+    again.refresh_from_db()
+    assert again.status == "succeeded" and again.pk != job.pk
+
+
+def test_a_published_rounds_missing_reports_wait_for_the_broker(demo, monkeypatch, caplog):
     """The published comparison still missing reports is the outbox: the beat task sends
     the fan-out once the broker is back, and the fan-out makes the batch rows then."""
     stand_in_pdf(monkeypatch)
     analysis_run_start(comparison=demo, user=None)
+    published = published_missing_reports(demo)
     attempts = broker_down(monkeypatch, "analysis.reports.tasks.reports_issue_all_task")
     with caplog.at_level(logging.ERROR, logger="common.jobs"):
-        published = comparison_publish(comparison=demo)
-    assert published.status == "published" and attempts == [(demo.pk,)]
+        assert reports_pending_enqueue() == 0
+    assert attempts == [(demo.pk,)]
     assert f"reports of comparison {demo.pk}: " in caplog.text
     assert "reports_issue_all_task not queued, broker unreachable" in caplog.text
     assert not Report.objects.exists() and not ReportBatch.objects.exists()

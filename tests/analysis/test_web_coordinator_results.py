@@ -125,7 +125,9 @@ def test_old_runs_stay_browsable(client, run, demo, django_capture_on_commit_cal
     assert newer.pk != run.pk
 
 
-def test_publish_then_participant_sees_anonymised_pages(client, run, demo):
+def test_publish_then_participant_sees_anonymised_pages(
+    client, run, demo, django_capture_on_commit_callbacks
+):
     lab = Laboratory.objects.get(name__startswith="Alpine")
     lab.name = "<script>alert(1)</script>"
     lab.save()
@@ -134,7 +136,11 @@ def test_publish_then_participant_sees_anonymised_pages(client, run, demo):
     client.force_login(member)
     assert client.get(f"/results/{CODE}/").status_code == 404  # not published yet
     login(client, "coordinator")
-    assert client.post(C + "publish/").status_code == 302
+    with django_capture_on_commit_callbacks(execute=True):  # the job's task, eager
+        response = client.post(C + "publish/")
+    assert response.status_code == 302
+    job = demo.publications.get()
+    assert response["Location"] == f"{C}publication/{job.pk}/" and job.status == "succeeded"
     demo.refresh_from_db()
     assert demo.status == "published"
     client.force_login(member)

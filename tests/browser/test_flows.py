@@ -263,7 +263,10 @@ def test_coordinator_publishes_and_lab_downloads_pdf(
     expect(page.get_by_text("Publication is final: it cannot be undone.")).to_be_visible()
     shots(page, "coordinator-publish-confirm")
     page.get_by_role("button", name="Publish results").click()
-    expect(page.get_by_role("status").filter(has_text="is published")).to_be_visible()
+    # the publication job's progress page, polled until the job has ended
+    progress = page.locator("#publication-progress")
+    expect(progress).to_have_attribute("data-status", "succeeded", timeout=60_000)
+    expect(progress.get_by_text("the participants were told by e-mail")).to_be_visible()
     shots(page, "coordinator-published")
     assert Comparison.objects.get(pk=comparison.pk).status == ComparisonStatus.PUBLISHED
     own = labs["beta"]

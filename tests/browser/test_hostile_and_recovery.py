@@ -113,7 +113,10 @@ def test_coordinator_cancels_a_stuck_run_and_publishes(
     page.get_by_role("link", name="Publish results…").click()
     expect(page.get_by_text("1 preliminary report is superseded by them")).to_be_visible()
     page.get_by_role("button", name="Publish results").click()
-    expect(page.get_by_role("status").filter(has_text="is published")).to_be_visible()
+    # the publication job's progress page, polled until the job has ended
+    progress = page.locator("#publication-progress")
+    expect(progress).to_have_attribute("data-status", "succeeded", timeout=60_000)
+    expect(progress.get_by_text("the participants were told by e-mail")).to_be_visible()
     preliminary.refresh_from_db()
     assert preliminary.superseded
 

@@ -1,6 +1,7 @@
-"""The broker goes down while a coordinator publishes: the publication stands (200), the
-lost enqueue is logged, and when the broker is back the beat sweep sends the report task
-and a real worker issues every report (summary + one per participant), once."""
+"""The broker goes down while a coordinator publishes: the publication job fails at once
+with the reason (202, the job failed), the lost enqueue is logged and nothing is
+published; when the broker is back, publishing again sends the job to a real worker, which
+issues every final report (summary + one per participant) once and publishes."""
 
 import logging
 import time
@@ -11,10 +12,11 @@ from django.contrib.auth import get_user_model
 from django.core.management import call_command
 from rest_framework.test import APIClient
 
-from analysis.models import AnalysisRun, Report
+from analysis.models import AnalysisRun, Publication, Report
+from analysis.publication import BROKER_UNREACHABLE
 from analysis.reports.services import reports_missing, reports_pending_enqueue
 from analysis.services import analysis_run_execute
-from analysis.tasks import reports_pending_task
+from labs.models import Notice
 from proficiency.models import Comparison
 from tests.faults.conftest import wait_until
 
@@ -44,39 +46,52 @@ def coordinator() -> APIClient:
     return client
 
 
-def test_publish_with_broker_down_loses_no_report(workers, analysed, broker_proxy, caplog):
+def test_publish_with_broker_down_publishes_nothing_then_a_worker_publishes(
+    workers, analysed, broker_proxy, caplog
+):
     workers.start("w0")  # the worker reaches Redis directly; this process only via the proxy
     broker_proxy.cut()
     t0 = time.monotonic()
     with caplog.at_level(logging.ERROR, logger="common.jobs"):
         response = coordinator().post(f"/api/v1/comparisons/{CODE}/publish/")
-    assert response.status_code == 200, response.content
+    assert response.status_code == 202, response.content
     assert time.monotonic() - t0 < 15  # the request does not hang on the dead broker
-    assert response.json()["status"] == "published"
-    assert "reports_issue_all_task not queued, broker unreachable" in caplog.text
+    body = response.json()
+    assert body["status"] == "analysed"
+    assert (body["publication"]["status"], body["publication"]["error"]) == (
+        "failed", BROKER_UNREACHABLE,
+    )  # fmt: skip
+    assert "publication_task not queued, broker unreachable" in caplog.text
     demo = Comparison.objects.get(code=CODE)
-    assert demo.status == "published"
-    participants = demo.participants.count()
-    assert participants == 12 and reports_missing(demo) == 13
-    assert not Report.objects.exists()
-    assert reports_pending_enqueue() == 0  # broker still down: nothing sent, nothing lost
+    assert demo.status == "analysed" and not Report.objects.exists()
+    assert not Notice.objects.filter(kind="published").exists()
 
     broker_proxy.restore()
-    reports_pending_task.delay()  # what Celery beat sends every 5 minutes
+    again = coordinator().post(f"/api/v1/comparisons/{CODE}/publish/")
+    assert again.status_code == 202 and again.json()["publication"]["status"] == "pending"
+    job = Publication.objects.get(pk=again.json()["publication"]["id"])
 
-    def issued() -> int:
-        return Report.objects.filter(comparison=demo).count() >= 13
+    def ended() -> bool:
+        job.refresh_from_db()
+        return job.status in ("succeeded", "failed")
 
-    wait_until(issued, "the 13 reports", workers, timeout=90)
+    wait_until(ended, "the publication to end", workers, timeout=90)
+    assert (job.status, job.error, job.progress) == ("succeeded", "", 100)
     time.sleep(1)  # a duplicate would show up now
+    demo.refresh_from_db()
+    assert demo.status == "published"
     reports = Report.objects.filter(comparison=demo)
-    assert reports.count() == 13
+    assert reports.count() == 13 and sorted(job.report_ids) == sorted(reports.values_list(
+        "pk", flat=True))  # fmt: skip
     assert reports.filter(kind="summary", participant=None).count() == 1
     by_participant = reports.filter(kind="participant")
     assert sorted(by_participant.values_list("participant_id", flat=True)) == sorted(
         demo.participants.values_list("pk", flat=True)
     )
-    assert set(reports.values_list("run_id", "version", "superseded")) == {(analysed.pk, 1, False)}
+    assert set(reports.values_list("run_id", "version", "superseded", "status")) == {
+        (analysed.pk, 1, False, "final")
+    }
+    assert Notice.objects.filter(kind="published", comparison=demo).count() == 12
     assert reports_missing(demo) == 0 and reports_pending_enqueue() == 0
 
 

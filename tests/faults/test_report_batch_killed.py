@@ -13,9 +13,10 @@ import pytest
 from django.core.management import call_command
 
 from analysis.models import AnalysisRun, Report, ReportBatch
-from analysis.publication import comparison_publish
+from analysis.reports.tasks import reports_issue_all_task
 from analysis.services import analysis_run_execute
 from proficiency.models import Comparison
+from tests.analysis.reports.conftest import published_missing_reports
 from tests.faults.conftest import wait_until
 
 pytestmark = [
@@ -49,7 +50,8 @@ def test_sigkill_mid_batch_is_re_queued_by_the_sweep_and_issues_each_report_once
     hung = codes[2]  # two reports of the batch stored, then the worker hangs in the third
     marker = tmp_path / "hung"
     doomed = workers.start("w0", FAULT_HANG_REPORT=hung, FAULT_MARKER=str(marker), **ENV)
-    comparison_publish(comparison=demo)  # the fan-out goes to the test's queue
+    # a published round missing its final reports: the fan-out goes to the test's queue
+    reports_issue_all_task.delay(published_missing_reports(demo).pk)
     wait_until(marker.exists, f"the worker to hang in {hung}'s report", workers, timeout=120)
     batch = ReportBatch.objects.get(kind="participants")
     assert (batch.status, batch.attempts) == ("running", 1)

@@ -51,6 +51,10 @@ PK = {
     # the world holds no notice either: any pk is nobody's -> 404 for the signed-in;
     # tests/labs/test_notices.py checks a real notice persona by persona
     "lab/notices/<int:pk>/read/": "result",
+    # nor a publication: tests/analysis/test_publication_jobs.py checks a real one
+    "coordinator/<slug:code>/publication/<int:pk>/": "result",
+    "coordinator/<slug:code>/publication/<int:pk>/progress/": "result",
+    "api/v1/publications/<int:pk>/": "result",
 }
 #: the password-reset link carries its own token (an invalid one here)
 TOKEN = {"accounts/reset/<uidb64>/<token>/": "reset_token"}
@@ -225,6 +229,14 @@ TABLE: dict[str, Row] = {
         get="302 405 405 405 405 405 302 302 405",
         post="302 404 404 404 302 404 302 302 302",
     ),
+    "coordinator/<slug:code>/publication/<int:pk>/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/publication/<int:pk>/progress/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
     "coordinator/<slug:code>/results/": Row(
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
@@ -379,6 +391,10 @@ TABLE: dict[str, Row] = {
     "api/v1/comparisons/<slug:code>/publish/": Row(
         get="401 405 405 405 405 405 405 401 405",
         post="401 403 403 403 409 404 403 401 409",
+    ),
+    "api/v1/publications/<int:pk>/": Row(
+        get="401 404 404 404 404 404 404 401 404",
+        post="401 405 405 405 405 405 405 401 405",
     ),
     "api/v1/comparisons/<slug:code>/transition/": Row(
         get="401 405 405 405 405 405 405 401 405",

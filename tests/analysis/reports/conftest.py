@@ -41,3 +41,19 @@ def pdf_text(pdf: bytes) -> list[str]:
     from pypdf import PdfReader
 
     return [page.extract_text() for page in PdfReader(io.BytesIO(pdf)).pages]
+
+
+def published_missing_reports(comparison):
+    """``comparison`` published without its final reports, the state the report fan-out
+    (``reports_issue_all_task``, sent again by beat) completes: a round published before
+    publication rendered its reports itself.  Set as that publication did: the status,
+    every preliminary report superseded, no final one (and no notice)."""
+    from django.db import transaction
+
+    from analysis.reports.services import reports_preliminary_supersede
+    from proficiency.services import comparison_transition
+
+    with transaction.atomic():
+        published = comparison_transition(comparison=comparison, to="published")
+        reports_preliminary_supersede(comparison=published)
+    return published

@@ -16,7 +16,6 @@ from django.utils import timezone
 from kombu.exceptions import OperationalError
 
 from analysis.models import Report, ReportBatch
-from analysis.publication import comparison_publish
 from analysis.reports import services
 from analysis.reports.services import (
     report_batch_execute,
@@ -30,6 +29,7 @@ from analysis.reports.tasks import report_issue_batch_task, report_issue_task
 from analysis.reports.tasks import reports_issue_all_task as fan_out
 from analysis.tasks import jobs_sweep_task
 from labs.models import Laboratory, Participant
+from tests.analysis.reports.conftest import published_missing_reports
 from tests.analysis.reports.test_batches import make_round
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -54,11 +54,10 @@ def renders(monkeypatch):
 
 
 @pytest.fixture
-def published(analysed, renders, monkeypatch):
-    """The demo published, its fan-out lost: no batch row and no report yet."""
-    with monkeypatch.context() as m:
-        m.setattr("analysis.reports.services._send_reports_task", lambda pk: False)
-        comparison = comparison_publish(comparison=analysed.comparison)
+def published(analysed, renders):
+    """The demo published without its final reports (published before publication rendered
+    them itself): no batch row and no report yet."""
+    comparison = published_missing_reports(analysed.comparison)
     assert not ReportBatch.objects.exists() and not Report.objects.exists()
     return comparison
 
@@ -86,8 +85,9 @@ def one_current_final_each(comparison) -> None:
     )
 
 
-def test_the_fan_out_makes_the_batch_rows_once(analysed, renders):
-    comparison = comparison_publish(comparison=analysed.comparison)  # eager: issued now
+def test_the_fan_out_makes_the_batch_rows_once(analysed, published, renders):
+    comparison = published
+    assert fan_out(comparison.pk) == 13  # eager: issued now
     ids = codes(comparison)
     expected = [
         ("summary", 0, [], "done", 1),
@@ -293,7 +293,8 @@ def test_a_slow_batch_keeps_its_claim_by_its_heartbeat(needs_postgres, published
 def test_an_error_in_rendering_fails_the_batch_and_the_next_fan_out_retries_it(
     analysed, monkeypatch
 ):
-    """The batch ends failed with the error (never running); the publication stands; the
+    """The batch ends failed with the error (never running); the round stays published
+    (a publication whose rendering fails publishes nothing: test_publication_jobs); the
     sweep leaves a failed batch alone; Celery beat's ``reports_pending_task`` sends the
     fan-out again while reports are missing, which retries it (and only it)."""
     comparison = analysed.comparison
@@ -308,8 +309,8 @@ def test_an_error_in_rendering_fails_the_batch_and_the_next_fan_out_retries_it(
         return f"%PDF-1.4 {data.report_number} {data.status}".encode()
 
     monkeypatch.setattr("analysis.reports.services.render_report", render)
-    comparison = comparison_publish(comparison=comparison)
-    assert comparison.status == "published"
+    comparison = published_missing_reports(comparison)
+    assert fan_out(comparison.pk) == 13
     assert [r[3:] for r in table(comparison)] == [
         ("done", 1), ("failed", 1), ("done", 1), ("done", 1),
     ]  # fmt: skip
@@ -347,8 +348,9 @@ def test_a_rule_broken_fails_the_batch_with_its_message(published, renders):
     assert row.error == f"Participants [{stranger.pk}] are not in {published.code}."
 
 
-def test_a_done_batch_missing_a_report_since_is_done_again(analysed, renders):
-    comparison = comparison_publish(comparison=analysed.comparison)
+def test_a_done_batch_missing_a_report_since_is_done_again(published, renders):
+    comparison = published
+    assert fan_out(comparison.pk) == 13
     lost = Report.objects.get(participant_id=codes(comparison)[7])
     lost.delete()  # e.g. in the admin
     assert reports_missing(comparison) == 1

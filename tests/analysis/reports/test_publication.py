@@ -19,7 +19,7 @@ from analysis.reports.services import (
 )
 from analysis.reports.tasks import reports_issue_all_task
 from proficiency.models import ComparisonStatus
-from tests.analysis.reports.conftest import CODE, pdf_text
+from tests.analysis.reports.conftest import CODE, pdf_text, published_missing_reports
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -101,16 +101,15 @@ def test_publication_task_delivered_twice_gives_the_same_reports(stand_in, analy
 
 
 def test_pending_task_resends_a_published_round_that_still_has_a_preliminary_report(
-    stand_in, analysed, monkeypatch
+    stand_in, analysed
 ):
-    """Publication's enqueue lost (broker down): the beat task sees the missing finals."""
+    """A round published without its final reports (before publication rendered them
+    itself): the beat task sees the missing finals."""
     comparison = analysed.comparison
     report_issue(comparison=comparison, kind="summary")
-    monkeypatch.setattr("analysis.reports.services._send_reports_task", lambda pk: False)
-    comparison_publish(comparison=comparison)
+    comparison = published_missing_reports(comparison)
     assert current(comparison) == {}  # the preliminary summary is no longer current
     assert reports_missing(comparison) == 13
-    monkeypatch.undo()
     assert reports_pending_enqueue() == 1
     assert len(current(comparison)) == 13 and reports_missing(comparison) == 0
     assert {r.status for r in current(comparison).values()} == {"final"}
