@@ -42,10 +42,15 @@ class ComparisonForm(BootstrapMixin, forms.ModelForm):
             "sigma_pt_value",
             "en_limit",
             "reminder_days",
+            "enrolment_open",
+            "enrolment_closes",
         ]
         widgets = {
             "description": forms.Textarea(attrs={"rows": 3}),
             "submission_deadline": forms.DateTimeInput(
+                attrs={"type": "datetime-local"}, format="%Y-%m-%dT%H:%M"
+            ),
+            "enrolment_closes": forms.DateTimeInput(
                 attrs={"type": "datetime-local"}, format="%Y-%m-%dT%H:%M"
             ),
         }
@@ -54,6 +59,8 @@ class ComparisonForm(BootstrapMixin, forms.ModelForm):
             "sigma_pt_mode": "σ_pt mode",
             "sigma_pt_value": "σ_pt value",
             "en_limit": "En limit",
+            "enrolment_open": "Open for applications",
+            "enrolment_closes": "Enrolment closes",
         }
 
     def clean(self) -> dict[str, Any]:

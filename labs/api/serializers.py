@@ -105,6 +105,8 @@ class ComparisonDetailSerializer(serializers.ModelSerializer):
             "n_measurement_points",
             "participant_code",
             "roles",
+            "enrolment_open",
+            "enrolment_closes",
         ]
 
     def get_n_measurement_points(self, obj: Comparison) -> int:
