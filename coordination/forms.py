@@ -238,6 +238,13 @@ class DecisionForm(BootstrapMixin, forms.Form):
     )
 
 
+class DeclineForm(BootstrapMixin, forms.Form):
+    reason = forms.CharField(
+        required=False, max_length=2_000, widget=forms.Textarea(attrs={"rows": 3}),
+        help_text="Required: the laboratory reads it (e.g. the round is full for that bench).",
+    )  # fmt: skip
+
+
 class ReportNotesForm(BootstrapMixin, forms.Form):
     """The coordinator's comments and conclusions and the reports' authoriser (docs/domain.md §9).
     Plain text: it is escaped when printed."""

@@ -119,6 +119,22 @@ TABLE: dict[str, Row] = {
         get="302 405 405 405 405 405 302 302 405",
         post="302 302 302 302 302 302 302 302 302",
     ),
+    # the open calls, read by every signed-in person (a sentence says who may apply)
+    "lab/calls/": Row(
+        get="302 200 200 200 200 200 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    # lab managers only (404 for staff, coordinators and superusers, who manage no lab); C1
+    # is visible to lab A, which takes part: the form says so and stores nothing
+    "lab/calls/<slug:code>/apply/": Row(
+        get="302 404 200 404 404 404 302 302 404",
+        post="302 404 200 404 404 404 302 302 404",
+    ),
+    # an application of a lab the user manages, POST only; the world has none -> 404
+    "lab/applications/<int:pk>/withdraw/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
     # managers are redirected to their lab's key page
     "lab/api-keys/": Row(
         get="302 404 302 404 404 404 302 302 404",
@@ -181,6 +197,19 @@ TABLE: dict[str, Row] = {
     "coordinator/<slug:code>/participants/<str:participant>/reference/": Row(
         get="302 405 405 405 405 405 302 302 405",
         post="302 404 404 404 302 404 302 302 302",
+    ),
+    # the round's coordinators; an application they do not have (none in the world) -> 404
+    "coordinator/<slug:code>/applications/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/applications/<int:pk>/accept/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
+    "coordinator/<slug:code>/applications/<int:pk>/decline/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 404 404 404 404 404 302 302 404",
     ),
     "coordinator/<slug:code>/review/": Row(
         get="302 404 404 404 200 404 302 302 200",
