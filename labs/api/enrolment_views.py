@@ -162,6 +162,10 @@ class CallList(_Paged):
     """The rounds taking applications now: their devices, benches, axes and frequencies (what
     a scope may ask for), the deadline and when the enrolment closes."""
 
+    # for the schema and OPTIONS only: the rows come from open_calls()
+    queryset = Comparison.objects.none()
+    serializer_class = CallSerializer
+
     def get(self, request: Request) -> Response:
         page = self.paginate_queryset(open_calls())
         assert page is not None
@@ -173,6 +177,10 @@ class CallList(_Paged):
 
 class ApplicationCollection(_Paged):
     """A round's applications: the coordinators see all, a laboratory its own."""
+
+    # for the schema and OPTIONS only: the rows come from labs.access.applications_in_scope
+    queryset = Enrolment.objects.none()
+    serializer_class = ApplicationSerializer
 
     @extend_schema(
         tags=["enrolment"],
