@@ -6,16 +6,20 @@ that does not fit is 400 naming the field, and nobody sees another laboratory's
 application or another round's."""
 
 import datetime as dt
+import threading
 
 import pytest
 from django.core import mail
 from django.core.mail import EmailMultiAlternatives
+from django.db import connection
 from django.test import Client
+from django.test.utils import CaptureQueriesContext
 from django.urls import reverse
 from django.utils import timezone
 from rest_framework.test import APIClient
 
 from common.errors import StateConflict, ValidationFailed
+from labs import enrolment as enrolment_module
 from labs.enrolment import enrolment_accept, enrolment_apply, enrolment_decline
 from labs.models import Enrolment, Membership, Notice, Participant
 from labs.selectors import participant_points, scope_text
@@ -494,3 +498,66 @@ def _signed_in(user):
     client = Client()
     client.force_login(user)
     return client
+
+
+# --- at once, and at scale --------------------------------------------------------------------
+
+
+def _count_queries(client, url) -> int:
+    with CaptureQueriesContext(connection) as queries:
+        assert client.get(url).status_code == 200, url
+    return len(queries)
+
+
+def test_the_lists_make_as_many_queries_for_one_call_as_for_four(call):
+    """No query per call or per application on the pages and API lists."""
+    pages = [
+        (_signed_in(call.manager), reverse("labs:calls")),
+        (_signed_in(call.coordinator), reverse("coordinator:applications", args=[CODE])),
+        (call.person(call.manager), "/api/v1/calls/"),
+        (call.person(call.coordinator), API),
+        (call.person(call.manager), API),
+    ]
+    call.apply()
+    before = [_count_queries(client, url) for client, url in pages]
+    for i in range(3):
+        other = ComparisonFactory.create(code=f"IMU-MORE-{i}", enrolment_open=True)
+        DeviceFactory.create(comparison=other)
+        lab = LaboratoryFactory.create()
+        enrolment_apply(comparison=call.comparison, laboratory=lab,
+                        scope=Scope(devices=["MEMS 2"]), notify=False)  # fmt: skip
+        enrolment_apply(comparison=other, laboratory=call.lab, scope=Scope(), notify=False)
+    assert [_count_queries(client, url) for client, url in pages] == before
+
+
+@pytest.mark.django_db(transaction=True)
+def test_two_applications_at_once_store_one(needs_postgres, monkeypatch):
+    """Both pass the checks before either is stored: the partial unique index lets one in,
+    the other is the same 409 as a later duplicate."""
+    call = Call()
+    barrier = threading.Barrier(2)
+    checked = enrolment_module._scope_clean
+
+    def slow_clean(*args, **kwargs):
+        result = checked(*args, **kwargs)
+        barrier.wait(10)  # both applications are past the duplicate check here
+        return result
+
+    monkeypatch.setattr(enrolment_module, "_scope_clean", slow_clean)
+    out: list[object] = [None, None]
+
+    def apply(i: int) -> None:
+        try:
+            out[i] = call.apply(notify=False)
+        except BaseException as exc:
+            out[i] = exc
+        finally:
+            connection.close()
+
+    threads = [threading.Thread(target=apply, args=(i,)) for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    assert sorted(type(o).__name__ for o in out) == ["Enrolment", "StateConflict"]
+    assert Enrolment.objects.filter(laboratory=call.lab).count() == 1
