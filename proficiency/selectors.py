@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import cast
 
@@ -35,7 +36,7 @@ class CallLevels:
     n_points: int = 0
 
 
-def call_levels(comparisons: list[Comparison]) -> dict[int, CallLevels]:
+def call_levels(comparisons: Sequence[Comparison]) -> dict[int, CallLevels]:
     """Each comparison's benches, axes and frequencies (sorted) and its number of points, by
     pk, in one query (grouped by level, not a row per point)."""
     rows = (

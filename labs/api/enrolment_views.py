@@ -4,9 +4,10 @@ views over ``labs.enrolment``; who may do what is ``labs.access``."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Sequence
 from typing import Any
 
+from django.db.models import QuerySet
 from drf_spectacular.types import OpenApiTypes
 from drf_spectacular.utils import OpenApiParameter, extend_schema
 from rest_framework import generics, serializers, status
@@ -148,48 +149,68 @@ APPLICATION = OpenApiParameter("id", OpenApiTypes.INT, OpenApiParameter.PATH)
 # --- views -----------------------------------------------------------------------------------
 
 
-class _Paged(ApiView, generics.GenericAPIView):
-    """Lists paginated as every list of the API (``?page=N``, 100 a page)."""
+class _List(ApiView, generics.ListAPIView):
+    """A list paginated as every list of the API (``?page=N``, 100 a page), each row made
+    by :meth:`body` (the schema documents ``serializer_class`` in the page)."""
 
-    def paged(self, request: Request, rows: Any, body: Callable[[Any], dict]) -> Response:
-        page = self.paginate_queryset(rows)
+    filter_backends: list[type] = []
+
+    def body(self, row: Any) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def rows(self) -> QuerySet[Any]:
+        raise NotImplementedError
+
+    def get_queryset(self) -> QuerySet[Any]:
+        if getattr(self, "swagger_fake_view", False):  # schema generation: no request
+            return self.rows().none()
+        return self.rows()
+
+    def list(self, request: Request, *args: Any, **kwargs: Any) -> Response:
+        page = self.paginate_queryset(self.get_queryset())
         assert page is not None  # the API's lists are always paginated (settings)
-        return self.get_paginated_response([body(r) for r in page])
+        return self.get_paginated_response(self.page_body(page))
+
+    def page_body(self, page: Sequence[Any]) -> Sequence[dict[str, Any]]:
+        serializer = self.get_serializer_class()
+        return [serializer(self.body(row)).data for row in page]
 
 
-@extend_schema(tags=["enrolment"], responses={200: CallSerializer(many=True), **AUTH_ERRORS})
-class CallList(_Paged):
+@extend_schema(tags=["enrolment"], responses={200: CallSerializer, **AUTH_ERRORS})
+class CallList(_List):
     """The rounds taking applications now: their devices, benches, axes and frequencies (what
     a scope may ask for), the deadline and when the enrolment closes."""
 
-    # for the schema and OPTIONS only: the rows come from open_calls()
-    queryset = Comparison.objects.none()
     serializer_class = CallSerializer
 
-    def get(self, request: Request) -> Response:
-        page = self.paginate_queryset(open_calls())
-        assert page is not None
-        levels = call_levels(page)
-        return self.get_paginated_response(
-            [CallSerializer(call_body(c, levels[c.pk])).data for c in page]
-        )
+    def rows(self) -> QuerySet[Any]:
+        return open_calls()
+
+    def page_body(self, page: Sequence[Any]) -> Sequence[dict[str, Any]]:
+        levels = call_levels(page)  # one query for the page's rounds
+        return [CallSerializer(call_body(c, levels[c.pk])).data for c in page]
 
 
-class ApplicationCollection(_Paged):
+class ApplicationCollection(_List):
     """A round's applications: the coordinators see all, a laboratory its own."""
 
-    # for the schema and OPTIONS only: the rows come from labs.access.applications_in_scope
-    queryset = Enrolment.objects.none()
     serializer_class = ApplicationSerializer
+
+    def rows(self) -> QuerySet[Any]:
+        if getattr(self, "swagger_fake_view", False):
+            return Enrolment.objects.none()
+        return applications_in_scope(call_access(caller_of(self.request), self.kwargs["code"]))
+
+    def body(self, row: Any) -> dict[str, Any]:
+        return application_body(row)
 
     @extend_schema(
         tags=["enrolment"],
         parameters=[CODE],
-        responses={200: ApplicationSerializer(many=True), **AUTH_ERRORS, **NOT_VISIBLE},
+        responses={200: ApplicationSerializer, **AUTH_ERRORS, **NOT_VISIBLE},
     )
-    def get(self, request: Request, code: str) -> Response:
-        found = applications_in_scope(call_access(caller_of(request), code))
-        return self.paged(request, found, lambda a: ApplicationSerializer(application_body(a)).data)
+    def get(self, request: Request, *args: Any, **kwargs: Any) -> Response:
+        return super().get(request, *args, **kwargs)
 
     @extend_schema(
         tags=["enrolment"],
