@@ -18,6 +18,8 @@ from drf_spectacular import openapi
 
 #: (path fragment, tag) for operations without a tag of their own: the first match counts
 PATH_TAGS = (
+    ("/applications", "enrolment"),
+    ("/calls", "enrolment"),
     ("/report-notes", "reports"),
     ("/reports", "reports"),
     ("/analysis-runs", "analysis runs"),

@@ -17,6 +17,7 @@ from rest_framework.response import Response
 from common.api import valid_data
 from common.errors import ValidationFailed
 from labs.access import require_coordinator
+from labs.api.serializers import ScopeSerializer
 from labs.api.views import ApiView
 from labs.models import Laboratory, Participant
 from labs.selectors import participant_points, scope_text
@@ -95,26 +96,6 @@ class PointsGenerate(ApiView):
             )
         body = {"created": len(new), "measurement_points": c.measurement_points.count()}
         return Response(body, status=status.HTTP_201_CREATED)
-
-
-class ScopeSerializer(serializers.Serializer):
-    """A participant's scope (docs/domain.md §10); an empty or absent list allows every value."""
-
-    devices = serializers.ListField(child=serializers.CharField(), required=False, default=list)
-    benches = serializers.ListField(child=serializers.CharField(), required=False, default=list)
-    axes = serializers.ListField(child=serializers.CharField(), required=False, default=list)
-    frequencies_hz = serializers.ListField(
-        child=serializers.FloatField(), required=False, default=list
-    )
-
-    def scope(self) -> Scope:
-        data = valid_data(self)
-        return Scope(
-            devices=data["devices"],
-            benches=data["benches"],
-            axes=data["axes"],
-            frequencies_hz=data["frequencies_hz"],
-        )
 
 
 class ScopeOutSerializer(serializers.Serializer):

@@ -4,8 +4,11 @@ Two laboratories reproduce Chiominto et al. 2024: a linear-bench lab and a
 curvilinear-bench lab whose per-frequency (and per-direction) results aggregate,
 with the rule of docs/domain.md §3, exactly to Table 1 of the reference data.  Ten
 synthetic laboratories add plausible scatter on both benches; one of them
-(``Outlier Metrology Services``) is a clear outlier on MEMS 2.  Everything is
-created idempotently: running the loader twice leaves the same rows.
+(``Outlier Metrology Services``) is a clear outlier on MEMS 2.  A second round,
+``IMU-2025-CALL``, is in preparation with its call for participation open and one pending
+application (lab03's, by its manager), so a new user sees the enrolment
+(docs/lifecycles.md §7) from both sides.  Everything is created idempotently: running the
+loader twice leaves the same rows.
 """
 
 from __future__ import annotations
@@ -17,18 +20,21 @@ import secrets
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from django.conf import settings
 from django.contrib.auth import get_user_model
 from django.contrib.auth.models import Group, Permission
 from django.db import transaction
+from django.utils import timezone
 
 from analysis.core.signals import synthetic
-from labs.models import Laboratory, Membership, Participant, Result, Submission
+from labs.enrolment import enrolment_apply
+from labs.models import Enrolment, Laboratory, Membership, Participant, Result, Submission
 from labs.raw_services import Upload, raw_record_upload
 from labs.services import Scope, participants_invite
+from proficiency import protocols
 from proficiency.models import (
     AssignedValueMethod,
     Comparison,
@@ -43,6 +49,11 @@ if TYPE_CHECKING:
     from analysis.core.signals.records import Record
 
 DEMO_CODE = "IMU-2024-DEMO"
+#: the round whose call for participation is open in the demo
+CALL_CODE = "IMU-2025-CALL"
+#: its enrolment closes, and its results are due, this long after the demo is first loaded
+CALL_ENROLMENT = dt.timedelta(days=60)
+CALL_DEADLINE = dt.timedelta(days=120)
 COORDINATORS_GROUP = "coordinators"
 NOMINAL = 418.0
 REFERENCE_DATA = Path(settings.BASE_DIR) / "docs" / "reference-data"  # published tables
@@ -144,6 +155,7 @@ def synthetic_results(
 @dataclass
 class DemoSummary:
     comparison: Comparison
+    call: Comparison | None = None
     created_users: dict[str, str] = field(default_factory=dict)  # username -> password
     existing_users: list[str] = field(default_factory=list)
 
@@ -152,7 +164,7 @@ class DemoSummary:
 def load_demo(*, password: str | None = None) -> DemoSummary:
     """Create the demo comparison, labs, users and results; idempotent."""
     comparison = _comparison()
-    devices = _devices(comparison)
+    devices = _devices(comparison, (1, 2, 3))
     if not comparison.measurement_points.exists():
         comparison_apply_template(
             comparison=comparison, template_key="linear_and_curvilinear", devices=devices
@@ -183,11 +195,47 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
                 user=manager, laboratory=participant.laboratory,
                 defaults={"role": Membership.Role.MANAGER},
             )  # fmt: skip
+            # ... and applies to the round whose call is open (below)
+            applicant = (participant.laboratory, manager)
         rows = synthetic_results(points, i, outlier=name == OUTLIER_LAB)
         _submit(participant, rows, Submission.Source.API if i % 2 else Submission.Source.WEB)
         if name == RAW_DATA_LAB:
             _raw_records(participant)
+    summary.call = _call(coordinator, *applicant)
     return summary
+
+
+def _call(coordinator: Any, laboratory: Laboratory, manager: Any) -> Comparison:
+    """The round in preparation with its call open, and ``laboratory``'s pending application
+    for the linear bench (made once; no e-mail, as the demo's invitations)."""
+    now = timezone.now()
+    call, _ = Comparison.objects.get_or_create(
+        code=CALL_CODE,
+        defaults={
+            "title": "MEMS accelerometer sensitivity on the linear bench (demo, open call)",
+            "description": (
+                "A round in preparation: two LSM6DSR accelerometers on the linear bench (tilt "
+                "plate on a vertical exciter, 5/10/20 Hz). Laboratories apply from Open calls."
+            ),
+            "protocol": protocols.LINEAR,
+            "status": ComparisonStatus.DRAFT,
+            "submission_deadline": now + CALL_DEADLINE,
+            "enrolment_open": True,
+            "enrolment_closes": now + CALL_ENROLMENT,
+            "assigned_value_method": AssignedValueMethod.WEIGHTED_MEAN,
+        },
+    )
+    call.coordinators.add(coordinator)
+    devices = _devices(call, (1, 2), serial="LSM6DSR-CALL")
+    if not call.measurement_points.exists():
+        comparison_apply_template(comparison=call, template_key=protocols.LINEAR, devices=devices)
+    if not Enrolment.objects.filter(comparison=call, laboratory=laboratory).exists():
+        enrolment_apply(
+            comparison=call, laboratory=laboratory, scope=Scope(devices=devices[:1]),
+            note="We calibrate on a linear bench up to 20 Hz; MEMS 1 only this time.",
+            user=manager, notify=False,
+        )  # fmt: skip
+    return call
 
 
 def _comparison() -> Comparison:
@@ -214,21 +262,23 @@ def _comparison() -> Comparison:
     return comparison
 
 
-def _devices(comparison: Comparison) -> list[Device]:
+def _devices(
+    comparison: Comparison, numbers: tuple[int, ...], serial: str = "LSM6DSR-DEMO"
+) -> list[Device]:
     return [
         Device.objects.get_or_create(
             comparison=comparison,
             name=f"MEMS {i}",
             defaults={
                 "model": "LSM6DSR",
-                "serial": f"LSM6DSR-DEMO-{i:03d}",
+                "serial": f"{serial}-{i:03d}",
                 "nominal_sensitivity": NOMINAL,
                 "tolerance": 1.0,
                 "tolerance_relative": True,
                 "tolerance_distribution": "rectangular",
             },
         )[0]
-        for i in (1, 2, 3)
+        for i in numbers
     ]
 
 

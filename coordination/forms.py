@@ -42,10 +42,15 @@ class ComparisonForm(BootstrapMixin, forms.ModelForm):
             "sigma_pt_value",
             "en_limit",
             "reminder_days",
+            "enrolment_open",
+            "enrolment_closes",
         ]
         widgets = {
             "description": forms.Textarea(attrs={"rows": 3}),
             "submission_deadline": forms.DateTimeInput(
+                attrs={"type": "datetime-local"}, format="%Y-%m-%dT%H:%M"
+            ),
+            "enrolment_closes": forms.DateTimeInput(
                 attrs={"type": "datetime-local"}, format="%Y-%m-%dT%H:%M"
             ),
         }
@@ -54,6 +59,8 @@ class ComparisonForm(BootstrapMixin, forms.ModelForm):
             "sigma_pt_mode": "σ_pt mode",
             "sigma_pt_value": "σ_pt value",
             "en_limit": "En limit",
+            "enrolment_open": "Open for applications",
+            "enrolment_closes": "Enrolment closes",
         }
 
     def clean(self) -> dict[str, Any]:
@@ -229,6 +236,13 @@ class DecisionForm(BootstrapMixin, forms.Form):
         widget=forms.Textarea(attrs={"rows": 3}),
         help_text="Required for a rejection: the laboratory reads it.",
     )
+
+
+class DeclineForm(BootstrapMixin, forms.Form):
+    reason = forms.CharField(
+        required=False, max_length=2_000, widget=forms.Textarea(attrs={"rows": 3}),
+        help_text="Required: the laboratory reads it (e.g. the round is full for that bench).",
+    )  # fmt: skip
 
 
 class ReportNotesForm(BootstrapMixin, forms.Form):

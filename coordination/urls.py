@@ -28,6 +28,13 @@ urlpatterns = [
         views.participant_reference,
         name="reference",
     ),
+    path(C + "applications/", views.applications, name="applications"),
+    path(C + "applications/<int:pk>/accept/", views.application_accept, name="application_accept"),
+    path(
+        C + "applications/<int:pk>/decline/",
+        views.application_decline,
+        name="application_decline",
+    ),
     path(C + "review/", views.review, name="review"),
     path(
         C + "review/<str:participant>/v<int:version>/",

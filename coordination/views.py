@@ -15,19 +15,30 @@ from django import forms
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.core.paginator import Paginator
-from django.db.models import Count, OuterRef, QuerySet, Subquery, prefetch_related_objects
+from django.db.models import (
+    Case,
+    Count,
+    OuterRef,
+    Q,
+    QuerySet,
+    Subquery,
+    When,
+    prefetch_related_objects,
+)
 from django.http import Http404, HttpResponse
 from django.shortcuts import get_object_or_404, redirect, render
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
 
 from analysis.reports.services import report_notes_update
 from common.errors import ApplicationError, refusal
+from common.points import format_number
 from common.sizes import counted
 from coordination.confirm import ACTIONS, confirmation
 from coordination.forms import (
     ComparisonCreateForm,
     ComparisonForm,
     DecisionForm,
+    DeclineForm,
     DeviceForm,
     InviteForm,
     PointGridForm,
@@ -36,8 +47,9 @@ from coordination.forms import (
     ScopeForm,
 )
 from labs import services as labs_services
-from labs.access import coordinated, coordinated_comparisons
-from labs.models import Participant, Result, Submission
+from labs.access import coordinated, coordinated_application, coordinated_comparisons
+from labs.enrolment import enrolment_accept, enrolment_decline, enrolment_scope
+from labs.models import Enrolment, Participant, Result, Submission
 from labs.notices import notices_of_comparison
 from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
 from labs.review import submission_decide, submission_request_check
@@ -54,6 +66,7 @@ from proficiency.selectors import POINT_ORDER
 from proficiency.services import (
     comparison_allowed_transitions,
     comparison_apply_template,
+    enrolment_check,
     measurement_points_generate,
 )
 
@@ -151,6 +164,10 @@ def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
                         if t in (ComparisonStatus.OPEN, ComparisonStatus.CLOSED)],
         "template": protocols.TEMPLATES.get(comparison.protocol),
     }  # fmt: skip
+    context["applications"] = comparison.enrolments.aggregate(
+        total=Count("pk"), pending=Count("pk", filter=Q(status=Enrolment.Status.PENDING))
+    )
+    context["enrolment_refusal"] = refusal(lambda: enrolment_check(comparison))
     notices = list(notices_of_comparison(comparison)[:NOTICES_SHOWN])
     context["notices"] = notices
     # counted only when the list is cut (one query fewer on every other page view)
@@ -367,6 +384,102 @@ def participant_reference(
     participant_set_reference(participant=chosen)
     messages.success(request, f"{chosen.code} is now the reference laboratory.")
     return redirect("coordinator:comparison", code=code)
+
+
+# --- applications (docs/lifecycles.md §7) --------------------------------------------------
+
+
+@login_required
+@require_GET
+def applications(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
+    """The round's applications, pending first, with Accept and Decline for each pending one."""
+    comparison = coordinated(request, code)
+    found = (
+        comparison.enrolments.select_related("laboratory", "participant", "applied_by",
+                                             "decided_by")
+        .prefetch_related("scope_devices")
+        .order_by(Case(When(status=Enrolment.Status.PENDING, then=0), default=1),
+                  "-created_at", "-id")
+    )  # fmt: skip
+    context = {
+        "comparison": comparison,
+        "applications": found,
+        "enrolment_refusal": refusal(lambda: enrolment_check(comparison)),
+    }
+    return render(request, "coordinator/applications.html", context)
+
+
+def _scope_initial(application: Enrolment) -> dict[str, object]:
+    scope = enrolment_scope(application)
+    return {
+        "devices": list(scope.devices),
+        "benches": list(scope.benches),
+        "axes": list(scope.axes),
+        "frequencies_hz": ", ".join(format_number(f) for f in scope.frequencies_hz),
+    }
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def application_accept(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
+    """What accepting does, the scope to grant (the one asked for, editable), then Accept."""
+    application = coordinated_application(request, code, pk)
+    comparison = application.comparison
+    form = ScopeForm(
+        request.POST or None, comparison=comparison, initial=_scope_initial(application)
+    )
+    if request.method == "POST" and form.is_valid():
+        try:
+            accepted = enrolment_accept(
+                enrolment=application, user=request.user, scope=form.scope()
+            )
+        except ApplicationError as exc:
+            _add_errors(form, exc)
+        else:
+            participant = accepted.participant
+            assert participant is not None
+            messages.success(
+                request,
+                f"{application.laboratory.name} accepted: it takes part as {participant.code} "
+                f"({scope_text(participant)}) and was sent the invitation.",
+            )
+            return redirect("coordinator:applications", code=code)
+    context = {
+        "comparison": comparison,
+        "application": application,
+        "form": form,
+        "pending": application.status == Enrolment.Status.PENDING,
+    }
+    return render(request, "coordinator/application_accept.html", context)
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def application_decline(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
+    """Decline an application with a reason the laboratory reads."""
+    application = coordinated_application(request, code, pk)
+    form = DeclineForm(request.POST or None)
+    if request.method == "POST" and form.is_valid():
+        try:
+            enrolment_decline(
+                enrolment=application, user=request.user, reason=form.cleaned_data["reason"]
+            )
+        except ApplicationError as exc:
+            _add_errors(form, exc)
+        else:
+            messages.success(
+                request,
+                f"The application of {application.laboratory.name} was declined; the "
+                "laboratory was sent your reason.",
+            )
+            return redirect("coordinator:applications", code=code)
+    context = {
+        "comparison": application.comparison,
+        "application": application,
+        "form": form,
+        "pending": application.status == Enrolment.Status.PENDING,
+    }
+    return render(request, "coordinator/application_decline.html", context)
 
 
 # --- review -------------------------------------------------------------------------------

@@ -10,7 +10,12 @@ A caller is either a laboratory (through one of its API keys) or a person
   the published results only once the comparison is published;
 * coordinator: a user in ``comparison.coordinators``, or a superuser; sees the
   comparison and every participant's submissions, laboratories by code only;
-* lab manager: a member with the manager role; manages the laboratory's API keys.
+* lab manager: a member with the manager role; manages the laboratory's API keys and
+  applies to open calls for participation (so does a key of the laboratory, which only a
+  manager can make);
+* applicant: a laboratory that applied to a round sees that round's call and its own
+  applications, every member of it (staff too); the round's coordinators see every
+  application.
 
 Anything outside the caller's scope is :class:`~common.errors.NotVisible` in the API
 (404, never 403) and ``Http404`` on a page, so another laboratory's objects cannot even
@@ -31,8 +36,13 @@ from rest_framework.request import Request
 
 from common.errors import NotVisible, StateConflict, ValidationFailed
 from labs.api.authentication import LabKeyPrincipal
-from labs.models import Laboratory, Membership, Participant, Result, Submission
-from labs.selectors import lab_comparisons, participant_for_lab, participant_for_user
+from labs.models import Enrolment, Laboratory, Membership, Participant, Result, Submission
+from labs.selectors import (
+    lab_comparisons,
+    participant_for_lab,
+    participant_for_user,
+    user_laboratories,
+)
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 
 if TYPE_CHECKING:
@@ -221,3 +231,147 @@ def submission_results(submission: Submission) -> QuerySet[Result]:
         "measurement_point__frequency_hz",
         "pk",
     )
+
+
+# --- calls for participation and applications (docs/lifecycles.md §7) ----------------------
+
+
+def member_labs(caller: Caller) -> QuerySet[Laboratory]:
+    """The laboratories the caller acts for: a key's own, a person's (staff or manager)."""
+    if caller.laboratory is not None:
+        return Laboratory.objects.filter(pk=caller.laboratory.pk)
+    assert caller.user is not None
+    return user_laboratories(caller.user)
+
+
+def applicant_labs(caller: Caller) -> QuerySet[Laboratory]:
+    """The laboratories for which the caller may apply: a key's own (keys are made by the
+    laboratory's managers), the ones a person manages."""
+    if caller.laboratory is not None:
+        return Laboratory.objects.filter(pk=caller.laboratory.pk)
+    assert caller.user is not None
+    return managed_labs(caller.user)
+
+
+@dataclass(frozen=True)
+class CallAccess:
+    comparison: Comparison
+    is_coordinator: bool
+    #: the laboratories the caller acts for (none for a coordinator alone)
+    laboratories: QuerySet[Laboratory]
+
+
+def call_access(caller: Caller, code: str) -> CallAccess:
+    """Comparison ``code`` as a call for participation: visible to its coordinators, to
+    everyone while ``enrolment_open`` is set (a closed call then answers 409, not 404), and
+    to a laboratory that takes part or applied; NotVisible (404) otherwise."""
+    comparison = Comparison.objects.filter(code=code).first()
+    labs = member_labs(caller)
+    user = caller.user
+    coordinator = (
+        comparison is not None
+        and user is not None
+        and (user.is_superuser or comparison.coordinators.filter(pk=user.pk).exists())
+    )
+    visible = comparison is not None and (
+        coordinator
+        or comparison.enrolment_open
+        or comparison.enrolments.filter(laboratory__in=labs).exists()
+        or comparison.participants.filter(laboratory__in=labs).exists()
+    )
+    if not visible:
+        raise NotVisible(f"No comparison {code!r} is visible to you.")
+    assert comparison is not None
+    return CallAccess(comparison, is_coordinator=coordinator, laboratories=labs)
+
+
+def applications_in_scope(access: CallAccess) -> QuerySet[Enrolment]:
+    """Coordinators: every application to the round; laboratories: their own; newest first."""
+    found = access.comparison.enrolments.all()
+    if not access.is_coordinator:
+        found = found.filter(laboratory__in=access.laboratories)
+    return (
+        found.select_related("laboratory", "comparison", "participant", "applied_by",
+                             "decided_by")
+        .prefetch_related("scope_devices")
+        .order_by("-created_at", "-id")
+    )  # fmt: skip
+
+
+def application_in_scope(access: CallAccess, pk: int) -> Enrolment:
+    application = applications_in_scope(access).filter(pk=pk).first()
+    if application is None:
+        raise NotVisible(f"No application {pk} to {access.comparison.code} is visible to you.")
+    return application
+
+
+def applying_laboratory(caller: Caller, laboratory_id: int | None = None) -> Laboratory:
+    """The laboratory the caller applies for: a key's own; the one a person manages, or the
+    one named by ``laboratory_id`` among several. 403 for a member who is no manager (and a
+    person in no laboratory); 404 for a laboratory the caller is not a member of."""
+    labs = applicant_labs(caller)
+    if laboratory_id is not None:
+        lab = labs.filter(pk=laboratory_id).first()
+        if lab is not None:
+            return lab
+        if not member_labs(caller).filter(pk=laboratory_id).exists():
+            raise NotVisible(f"No laboratory {laboratory_id} is visible to you.")
+        labs = labs.none()
+    managed = list(labs.order_by("name")[:2])
+    if not managed:
+        raise PermissionDenied(
+            "Only a manager of a laboratory (or one of its API keys) can apply for it; ask "
+            "your laboratory's manager."
+        )
+    if len(managed) > 1:
+        raise ValidationFailed(
+            "You manage several laboratories: say which one applies.",
+            errors=[{"field": "laboratory", "message": "required: the laboratory's id"}],
+        )
+    return managed[0]
+
+
+def call_page(request: HttpRequest, code: str) -> CallAccess:
+    """:func:`call_access` for a signed-in person's page; 404 otherwise."""
+    try:
+        return call_access(Caller(user=cast(User, request.user)), code)
+    except NotVisible as exc:
+        raise Http404(exc.message) from None
+
+
+def applications_visible_to(user: User | AnonymousUser) -> QuerySet[Enrolment]:
+    """The applications of the user's laboratories (every member sees them), newest first."""
+    return (
+        Enrolment.objects.filter(laboratory__in=user_laboratories(user))
+        .select_related("laboratory", "comparison", "participant")
+        .prefetch_related("scope_devices")
+        .order_by("-created_at", "-id")
+    )
+
+
+def managed_application(request: HttpRequest, pk: int) -> Enrolment:
+    """An application of a laboratory the user manages (to withdraw it); 404 otherwise,
+    for staff too, as :func:`managed_lab`."""
+    application = (
+        Enrolment.objects.filter(laboratory__in=managed_labs(request.user), pk=pk)
+        .select_related("laboratory", "comparison")
+        .first()
+    )
+    if application is None:
+        raise Http404("No application of a laboratory you manage.")
+    return application
+
+
+def coordinated_application(request: AuthenticatedHttpRequest, code: str, pk: int) -> Enrolment:
+    """An application to a comparison the user coordinates; 404 otherwise."""
+    comparison = coordinated(request, code)
+    application = (
+        applications_in_scope(
+            CallAccess(comparison, is_coordinator=True, laboratories=Laboratory.objects.none())
+        )
+        .filter(pk=pk)
+        .first()
+    )
+    if application is None:
+        raise Http404(f"No application {pk} to {code}.")
+    return application

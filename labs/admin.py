@@ -3,6 +3,7 @@ from rest_framework_api_key.admin import APIKeyModelAdmin
 
 from common.admin_site import RecordedByServicesAdmin, ViewOnly
 from labs.models import (
+    Enrolment,
     LabAPIKey,
     Laboratory,
     Membership,
@@ -64,6 +65,18 @@ class NoticeAdmin(RecordedByServicesAdmin):
     search_fields = ["subject", "dedupe_key", "laboratory__name", "participant__code"]
     list_select_related = ["comparison", "laboratory", "participant"]
     raw_id_fields = ["laboratory", "comparison", "participant"]
+
+
+@admin.register(Enrolment)
+class EnrolmentAdmin(RecordedByServicesAdmin):
+    """Applications are decided on the coordinator pages (labs.enrolment); shown here only."""
+
+    list_display = ["created_at", "comparison", "laboratory", "status", "participant",
+                    "decided_at"]  # fmt: skip
+    list_filter = ["status", "comparison"]
+    search_fields = ["laboratory__name", "comparison__code", "note", "reason"]
+    list_select_related = ["comparison", "laboratory", "participant"]
+    raw_id_fields = ["laboratory", "comparison", "participant", "applied_by", "decided_by"]
 
 
 @admin.register(SubmissionKey)

@@ -9,16 +9,18 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 from django import forms
 from django.conf import settings
 from django.core.files.uploadedfile import UploadedFile
+from django.db.models import QuerySet
 
 from common.points import format_number
 from labs.importers.values import human_size
-from labs.models import LabAPIKey, Result
-from proficiency.models import MeasurementPoint
+from labs.models import LabAPIKey, Laboratory, Result
+from labs.services import Scope
+from proficiency.models import Bench, Comparison, Device, MeasurementPoint
 
 #: Grid columns, in the results-table names of docs/interfaces.md §1:
 #: (label, short title, max length).
@@ -211,3 +213,68 @@ class APIKeyCreateForm(forms.Form):
         help_text="What uses the key, e.g. the calibration software or the computer.",
         widget=forms.TextInput(attrs={"class": "form-control", "autocomplete": "off"}),
     )
+
+
+class ApplicationForm(forms.Form):
+    """A laboratory's application to an open call: the scope it measures, chosen among the
+    round's own devices, benches, axes and frequencies (nothing ticked in a group: every
+    value of it), and a note. ``labs.enrolment`` checks it as an invitation's scope."""
+
+    laboratory = forms.ModelChoiceField(
+        queryset=Laboratory.objects.none(), widget=forms.RadioSelect, empty_label=None,
+        label="Laboratory applying",
+    )  # fmt: skip
+    devices = forms.ModelMultipleChoiceField(
+        queryset=Device.objects.none(), required=False, widget=forms.CheckboxSelectMultiple,
+        help_text="None ticked: every device.",
+    )  # fmt: skip
+    benches = forms.MultipleChoiceField(
+        required=False, widget=forms.CheckboxSelectMultiple, help_text="None ticked: every bench."
+    )
+    axes = forms.MultipleChoiceField(
+        required=False, widget=forms.CheckboxSelectMultiple, help_text="None ticked: every axis."
+    )
+    frequencies_hz = forms.TypedMultipleChoiceField(
+        coerce=float, required=False, widget=forms.CheckboxSelectMultiple, label="Frequencies",
+        help_text="None ticked: every frequency.",
+    )  # fmt: skip
+    note = forms.CharField(
+        required=False, max_length=2_000, widget=forms.Textarea(attrs={"rows": 3}),
+        label="Note to the coordinator", help_text="Optional, e.g. your bench's range.",
+    )  # fmt: skip
+
+    def __init__(
+        self, *args: Any, comparison: Comparison, levels: Any,
+        laboratories: QuerySet[Laboratory], **kwargs: Any,
+    ) -> None:  # fmt: skip
+        super().__init__(*args, **kwargs)
+        f = self.fields
+        cast(forms.ModelChoiceField, f["laboratory"]).queryset = laboratories
+        if len(laboratories) == 1:
+            f["laboratory"].initial = laboratories[0]
+            f["laboratory"].widget = forms.HiddenInput()
+        cast(forms.ModelMultipleChoiceField, f["devices"]).queryset = comparison.devices.order_by(
+            "name"
+        )
+        bench_names = dict(Bench.choices)
+        cast(forms.ChoiceField, f["benches"]).choices = [
+            (b, bench_names.get(b, b)) for b in levels.benches
+        ]
+        cast(forms.ChoiceField, f["axes"]).choices = [(a, a) for a in levels.axes]
+        cast(forms.ChoiceField, f["frequencies_hz"]).choices = [
+            (format_number(v), f"{format_number(v)} Hz") for v in levels.frequencies_hz
+        ]
+        for each in f.values():
+            if isinstance(each.widget, forms.CheckboxSelectMultiple | forms.RadioSelect):
+                each.widget.attrs.setdefault("class", "form-check-input")
+            elif not isinstance(each.widget, forms.HiddenInput):
+                each.widget.attrs.setdefault("class", "form-control")
+
+    def scope(self) -> Scope:
+        data = self.cleaned_data
+        return Scope(
+            devices=list(data["devices"]),
+            benches=data["benches"],
+            axes=data["axes"],
+            frequencies_hz=data["frequencies_hz"],
+        )

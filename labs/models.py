@@ -436,6 +436,8 @@ class Notice(models.Model):
         REJECTED = "rejected", "Submission rejected"
         CHECK = "check", "Request to check a result"
         PUBLISHED = "published", "Results published"
+        APPLIED = "applied", "Application received"
+        DECLINED = "declined", "Application declined"
 
     laboratory = models.ForeignKey(Laboratory, on_delete=models.CASCADE, related_name="notices")
     comparison = models.ForeignKey(Comparison, on_delete=models.CASCADE, related_name="notices")
@@ -462,7 +464,7 @@ class Notice(models.Model):
                 condition=Q(
                     kind__in=[
                         "invitation", "opened", "reminder", "receipt", "accepted",
-                        "rejected", "check", "published",
+                        "rejected", "check", "published", "applied", "declined",
                     ]
                 ),
                 name="notice_kind_valid",
@@ -471,3 +473,62 @@ class Notice(models.Model):
 
     def __str__(self) -> str:
         return f"{self.kind} to {self.laboratory} ({self.comparison})"
+
+
+class Enrolment(models.Model):
+    """A laboratory's application to take part in a round whose call is open, with the scope
+    it asks for (docs/lifecycles.md §7). Accepting it invites the laboratory as a
+    coordinator's invitation does: a random participant code, the requested (or amended)
+    scope and the invitation notice; the application keeps the participant it made.
+
+    At most one application per laboratory and round is pending or accepted; a declined or
+    withdrawn one stays as history and the laboratory may apply again.
+    """
+
+    class Status(models.TextChoices):
+        PENDING = "pending", "Pending"
+        ACCEPTED = "accepted", "Accepted"
+        DECLINED = "declined", "Declined"
+        WITHDRAWN = "withdrawn", "Withdrawn"
+
+    laboratory = models.ForeignKey(Laboratory, on_delete=models.CASCADE, related_name="enrolments")
+    comparison = models.ForeignKey(Comparison, on_delete=models.CASCADE, related_name="enrolments")
+    status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
+    # the requested scope, the shape of Participant's (docs/domain.md §10): empty lists allow
+    # every value
+    scope_devices = models.ManyToManyField(Device, blank=True, related_name="enrolments")
+    scope_benches = models.JSONField(default=list, blank=True)
+    scope_axes = models.JSONField(default=list, blank=True)
+    scope_frequencies_hz = models.JSONField(default=list, blank=True)
+    note = models.TextField(blank=True, help_text="The laboratory's note to the coordinator.")
+    reason = models.TextField(blank=True, help_text="The coordinator's reason for declining.")
+    applied_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL,
+        related_name="enrolments_applied", help_text="Empty when applied with an API key.",
+    )  # fmt: skip
+    decided_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL,
+        related_name="enrolments_decided",
+    )  # fmt: skip
+    participant = models.OneToOneField(
+        Participant, null=True, blank=True, on_delete=models.SET_NULL, related_name="enrolment"
+    )
+    created_at = models.DateTimeField(auto_now_add=True)
+    decided_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["comparison", "-created_at", "-id"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["laboratory", "comparison"],
+                condition=Q(status__in=["pending", "accepted"]),
+                name="enrolment_one_live",
+            ),
+            models.CheckConstraint(
+                condition=Q(status__in=["pending", "accepted", "declined", "withdrawn"]),
+                name="enrolment_status_valid",
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.laboratory} → {self.comparison} ({self.status})"

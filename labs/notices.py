@@ -26,7 +26,7 @@ from django.urls import reverse
 from django.utils import timezone
 
 from common.jobs import send
-from labs.models import Laboratory, Membership, Notice, Participant, Submission
+from labs.models import Enrolment, Laboratory, Membership, Notice, Participant, Submission
 from labs.tasks import notice_email_task
 from proficiency.models import Comparison, ComparisonStatus, reminder_days_parse
 
@@ -69,15 +69,32 @@ def notify(
     ``notices/<kind>.txt`` with ``context`` plus the comparison, participant, laboratory,
     the absolute ``link_url`` and the provider's name. The e-mail goes after commit.
     """
+    return notify_laboratory(
+        kind=kind, laboratory=participant.laboratory, comparison=participant.comparison,
+        participant=participant, dedupe_key=dedupe_key, link=link, context=context,
+    )  # fmt: skip
+
+
+def notify_laboratory(
+    *,
+    kind: str,
+    laboratory: Laboratory,
+    comparison: Comparison,
+    dedupe_key: str,
+    link: str,
+    participant: Participant | None = None,
+    context: Mapping[str, Any] | None = None,
+) -> Notice | None:
+    """:func:`notify` for a laboratory that need not take part (yet): an application's
+    receipt or its refusal (``participant`` None)."""
     if kind not in K.values:
         raise ValueError(f"unknown notice kind {kind!r}")
     if Notice.objects.filter(dedupe_key=dedupe_key).exists():
         return None
-    comparison = participant.comparison
     values = {
         "comparison": comparison,
         "participant": participant,
-        "laboratory": participant.laboratory,
+        "laboratory": laboratory,
         "link_url": absolute(link),
         "site_url": settings.SITE_URL,
         "provider": settings.PT_PROVIDER_NAME,
@@ -88,7 +105,7 @@ def notify(
     try:
         with transaction.atomic():  # a savepoint: a concurrent twin leaves the caller intact
             notice = Notice.objects.create(
-                laboratory=participant.laboratory,
+                laboratory=laboratory,
                 comparison=comparison,
                 participant=participant,
                 kind=kind,
@@ -233,6 +250,30 @@ def notify_check(submission: Submission, result_id: int, where: str) -> Notice |
     """A request to check one result, naming only its point (never the deviation); once
     per result."""
     return _about(submission, K.CHECK, f"check:{result_id}", where=where)
+
+
+def _about_application(enrolment: Enrolment, kind: str, **context: object) -> Notice | None:
+    """A notice about an application, linking to the laboratory's Open calls page (which
+    lists its applications)."""
+    return notify_laboratory(
+        kind=kind,
+        laboratory=enrolment.laboratory,
+        comparison=enrolment.comparison,
+        dedupe_key=f"{kind}:{enrolment.pk}",
+        link=reverse("labs:calls"),
+        context={"enrolment": enrolment, **context},
+    )
+
+
+def notify_applied(enrolment: Enrolment, scope: str) -> Notice | None:
+    """The receipt of an application: what was asked for (``scope`` in words) and what
+    happens next."""
+    return _about_application(enrolment, K.APPLIED, scope=scope)
+
+
+def notify_declined(enrolment: Enrolment) -> Notice | None:
+    """An application declined, with the coordinator's reason."""
+    return _about_application(enrolment, K.DECLINED)
 
 
 def reminders_send(*, now: dt.datetime | None = None) -> int:

@@ -25,7 +25,7 @@ from common.errors import NotVisible
 from common.points import POINT_LOOKUPS, format_number
 from common.rows import JoinedQuery, ModelColumns
 from labs.importers import COLUMNS, PointKey, ResultRow, TableContext, write_table
-from labs.models import Laboratory, Participant, Result, Submission
+from labs.models import Enrolment, Laboratory, Participant, Result, Submission
 from proficiency.models import Comparison, MeasurementPoint
 
 
@@ -184,9 +184,10 @@ def participants_point_counts(
     return counts["total"], {p.pk: counts[f"p{p.pk}"] for p in participants}
 
 
-def scope_text(participant: Participant) -> str:
+def scope_text(participant: Participant | Enrolment) -> str:
     """The scope in words: ``devices MEMS 1; bench linear``; ``every measurement point``
-    when it has none (one query for the devices unless ``scope_devices`` is prefetched)."""
+    when it has none (one query for the devices unless ``scope_devices`` is prefetched).
+    An application's requested scope (``Enrolment``) has the same fields and reads the same."""
     names = sorted(d.name for d in participant.scope_devices.all())  # prefetched, or one query
     parts = []
     for word, plural, values in (

@@ -9,6 +9,13 @@ app_name = "labs"
 urlpatterns = [
     path("lab/", views.dashboard, name="dashboard"),
     path("lab/notices/read/", views.notices_read_all, name="notices_read_all"),
+    path("lab/calls/", views.calls, name="calls"),
+    path("lab/calls/<slug:code>/apply/", views.call_apply, name="call_apply"),
+    path(
+        "lab/applications/<int:pk>/withdraw/",
+        views.application_withdraw,
+        name="application_withdraw",
+    ),
     path("lab/notices/<int:pk>/read/", views.notice_read, name="notice_read"),
     path("lab/comparisons/<slug:code>/", views.comparison_detail, name="comparison"),
     path("lab/comparisons/<slug:code>/results/", views.results_grid, name="grid"),

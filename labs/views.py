@@ -23,13 +23,38 @@ from django.views.decorators.csrf import csrf_exempt, csrf_protect
 from django.views.decorators.http import require_GET, require_http_methods
 from django_htmx.http import HttpResponseClientRedirect
 
-from common.errors import NotVisible, RequestTooLarge, StateConflict, ValidationFailed, refusal
+from common.errors import (
+    ApplicationError,
+    NotVisible,
+    RequestTooLarge,
+    StateConflict,
+    ValidationFailed,
+    refusal,
+)
 from common.middleware import validates_own_text
 from labs import services
-from labs.access import comparisons_visible_to, managed_lab, managed_labs, participant_page
-from labs.forms import APIKeyCreateForm, ResultGridForm, ResultUploadForm
+from labs.access import (
+    applications_visible_to,
+    call_page,
+    comparisons_visible_to,
+    managed_application,
+    managed_lab,
+    managed_labs,
+    participant_page,
+)
+from labs.enrolment import enrolment_apply, enrolment_apply_check, enrolment_withdraw
+from labs.forms import APIKeyCreateForm, ApplicationForm, ResultGridForm, ResultUploadForm
 from labs.importers.values import human_size
-from labs.models import LabAPIKey, Laboratory, Participant, RawRecord, Result, Submission
+from labs.models import (
+    Enrolment,
+    LabAPIKey,
+    Laboratory,
+    Membership,
+    Participant,
+    RawRecord,
+    Result,
+    Submission,
+)
 from labs.notices import notice_mark_read, notices_for
 from labs.raw import RawUploadLimit
 from labs.raw_forms import RawUploadForm
@@ -44,6 +69,7 @@ from labs.selectors import (
 from labs.selectors import results_template as template_bytes
 from proficiency import protocols
 from proficiency.models import Comparison
+from proficiency.selectors import call_levels, open_calls
 
 if TYPE_CHECKING:
     from django.contrib.auth.models import User
@@ -473,3 +499,115 @@ def raw_record(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpRes
         "figure": raw_record_figure(record),
     }
     return render(request, "labs/raw_record.html", context)
+
+
+# --- open calls and applications (docs/lifecycles.md §7) -------------------------
+
+
+def _who_applies(request: HttpRequest) -> str:
+    """Who can apply for the user's laboratories, when the user manages none of them."""
+    managers = (
+        Membership.objects.filter(
+            laboratory__in=user_laboratories(request.user), role=Membership.Role.MANAGER
+        )
+        .select_related("user", "laboratory")
+        .order_by("laboratory__name", "user__username")
+    )
+    names = ", ".join(f"{m.user.get_username()} ({m.laboratory.name})" for m in managers)
+    who = f": {names}" if names else ""
+    return (
+        "Only a manager of a laboratory can apply for it (or the laboratory's software with "
+        f"an API key){who}. You can see the calls and your laboratory's applications here."
+    )
+
+
+@login_required
+@require_GET
+def calls(request: AuthenticatedHttpRequest) -> HttpResponse:
+    """The rounds taking applications now, and the applications of the user's laboratories."""
+    found = list(open_calls())
+    levels = call_levels(found)
+    applications = list(applications_visible_to(request.user))
+    taking_part = set(
+        Participant.objects.filter(
+            laboratory__in=user_laboratories(request.user), comparison__in=found
+        ).values_list("comparison_id", flat=True)
+    )
+    live = {
+        a.comparison_id
+        for a in applications
+        if a.status in (Enrolment.Status.PENDING, Enrolment.Status.ACCEPTED)
+    }
+    may_apply = managed_labs(request.user).exists()
+    rows = [
+        {"call": c, "levels": levels[c.pk], "taking_part": c.pk in taking_part,
+         "applied": c.pk in live}
+        for c in found
+    ]  # fmt: skip
+    context = {
+        "rows": rows,
+        "applications": applications,
+        "may_apply": may_apply,
+        "who_applies": None if may_apply else _who_applies(request),
+    }
+    return render(request, "labs/calls.html", context)
+
+
+@login_required
+@require_http_methods(["GET", "POST"])
+def call_apply(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
+    """Apply to a round with a scope and a note: lab managers only (404 for staff)."""
+    comparison = call_page(request, code).comparison
+    laboratories = managed_labs(request.user).order_by("name")
+    if not laboratories.exists():
+        raise Http404("Only a manager of a laboratory can apply for it.")
+    levels = call_levels([comparison])[comparison.pk]
+    form = ApplicationForm(
+        request.POST or None, comparison=comparison, levels=levels, laboratories=laboratories
+    )
+    only = laboratories[0] if len(laboratories) == 1 else None
+    closed_reason = refusal(lambda: enrolment_apply_check(comparison, only))
+    if request.method == "POST" and form.is_valid():
+        lab = form.cleaned_data["laboratory"]
+        try:
+            enrolment_apply(
+                comparison=comparison, laboratory=lab, scope=form.scope(),
+                note=form.cleaned_data["note"], user=request.user,
+            )  # fmt: skip
+        except ApplicationError as exc:
+            fields = [e for e in exc.errors if e["field"] in form.fields]
+            for e in fields:
+                form.add_error(e["field"], e["message"])
+            if not fields:
+                form.add_error(None, exc.message)
+        else:
+            messages.success(
+                request,
+                f"The application of {lab.name} to {comparison.code} was sent; the coordinator "
+                "accepts or declines it, and your laboratory is told either way.",
+            )
+            return redirect("labs:calls")
+    context = {
+        "comparison": comparison,
+        "levels": levels,
+        "form": form,
+        "closed_reason": closed_reason,
+        "devices": comparison.devices.order_by("name"),
+    }
+    return render(request, "labs/call_apply.html", context)
+
+
+@login_required
+@require_http_methods(["POST"])
+def application_withdraw(request: AuthenticatedHttpRequest, pk: int) -> HttpResponse:
+    """Take back a pending application of a laboratory the user manages; 404 otherwise."""
+    application = managed_application(request, pk)
+    try:
+        enrolment_withdraw(enrolment=application, user=request.user)
+    except StateConflict as exc:
+        messages.error(request, exc.message)
+    else:
+        messages.success(
+            request, f"The application to {application.comparison.code} was withdrawn."
+        )
+    return redirect("labs:calls")

@@ -141,6 +141,17 @@ class Comparison(models.Model):
     coordinators = models.ManyToManyField(
         settings.AUTH_USER_MODEL, blank=True, related_name="coordinated_comparisons"
     )
+    # The round's call for participation (docs/lifecycles.md §7): laboratories may apply
+    # while it is open (proficiency.services.enrolment_check says when).
+    enrolment_open = models.BooleanField(
+        default=False,
+        help_text="Laboratories may apply to take part (listed under Open calls) while the "
+        "round is draft or open, before the enrolment closes and before the deadline.",
+    )
+    enrolment_closes = models.DateTimeField(
+        null=True, blank=True, help_text="Applications are taken until then (empty: until the "
+        "submission deadline).",
+    )  # fmt: skip
     # Printed in the reports (docs/domain.md §9); edited by the coordinators, audit-logged.
     report_comments = models.TextField(
         blank=True, help_text="Comments on performance and advice on interpretation."

@@ -28,6 +28,7 @@ class NewComparisonSerializer(serializers.ModelSerializer):
         fields = [
             "code", "title", "description", "template", "submission_deadline",
             "assigned_value_method", "sigma_pt_mode", "sigma_pt_value", "en_limit",
+            "enrolment_open", "enrolment_closes",
         ]  # fmt: skip
         extra_kwargs = {
             "sigma_pt_value": POSITIVE,

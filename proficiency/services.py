@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import itertools
 from collections.abc import Iterable, Sequence
 from typing import TYPE_CHECKING, Any, TypedDict, Unpack
 
 from django.db import transaction
+from django.db.models import Q
+from django.utils import timezone
 
-from common.errors import InvalidTransition, ValidationFailed
+from common.errors import InvalidTransition, StateConflict, ValidationFailed
 from proficiency import protocols
 from proficiency.models import (
     DEFAULT_UNIT,
@@ -55,6 +58,47 @@ def comparison_transition_check(*, comparison: Comparison, to: str) -> None:
             f"Comparison {comparison.code} cannot go from {comparison.status} to {to}; "
             f"allowed next status: {nexts}."
         )
+
+
+# --- the call for participation (docs/lifecycles.md §7) ------------------------------------
+
+#: the states in which a round takes applications: before its results are collected
+ENROLMENT_STATES = (S.DRAFT, S.OPEN)
+
+
+def enrolment_check(comparison: Comparison, *, now: dt.datetime | None = None) -> None:
+    """StateConflict (409) saying why ``comparison`` takes no application now: the call is
+    open while ``enrolment_open`` is set, the round is draft or open, and neither
+    ``enrolment_closes`` nor the submission deadline has passed. The same rule as
+    :func:`enrolment_open_filter`."""
+    now = now or timezone.now()
+    code = comparison.code
+    if not comparison.enrolment_open:
+        raise StateConflict(f"{code} takes no applications: its call for participation is closed.")
+    if comparison.status not in ENROLMENT_STATES:
+        raise StateConflict(
+            f"{code} is {comparison.get_status_display().lower()}: applications are taken only "
+            "while a round is in preparation or open."
+        )
+    closes = comparison.enrolment_closes
+    if closes is not None and now >= closes:
+        raise StateConflict(f"The enrolment of {code} closed on {closes:%Y-%m-%d %H:%M} UTC.")
+    deadline = comparison.submission_deadline
+    if deadline is not None and now >= deadline:
+        raise StateConflict(
+            f"The submission deadline of {code} passed on {deadline:%Y-%m-%d %H:%M} UTC: "
+            "it takes no more applications."
+        )
+
+
+def enrolment_open_filter(*, now: dt.datetime | None = None) -> Q:
+    """The comparisons whose call is open now (:func:`enrolment_check`'s rule as a filter)."""
+    now = now or timezone.now()
+    return (
+        Q(enrolment_open=True, status__in=ENROLMENT_STATES)
+        & (Q(enrolment_closes__isnull=True) | Q(enrolment_closes__gt=now))
+        & (Q(submission_deadline__isnull=True) | Q(submission_deadline__gt=now))
+    )
 
 
 @transaction.atomic

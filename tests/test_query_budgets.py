@@ -54,7 +54,8 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("key_a", f"/api/v1/comparisons/{C1}/raw-data/", 6, ""),
     ("key_a", f"/api/v1/comparisons/{C1}/reports/", 4, "published"),
     # coordinator web pages
-    ("coord1", f"/coordinator/{C1}/", 12, ""),  # + the notices list and the scopes
+    # + the notices list, the scopes and the applications' counts
+    ("coord1", f"/coordinator/{C1}/", 13, ""),
     ("coord1", f"/coordinator/{C1}/review/", 10, ""),
     ("coord1", f"/coordinator/{C1}/results/", 19, ""),
     ("coord1", f"/coordinator/{C1}/analysis/runs/", 11, ""),

@@ -11,8 +11,10 @@ from typing import Any
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
+from common.api import valid_data
 from common.rendering import ValuesRendering
 from labs.models import Result, Submission
+from labs.services import Scope
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
 from proficiency.services import DEVICE_FIELDS
 
@@ -65,6 +67,29 @@ class SubmissionStatusField(serializers.CharField):
     pass
 
 
+# ---------------------------------------------------------------- scopes
+
+
+class ScopeSerializer(serializers.Serializer):
+    """A participant's scope (docs/domain.md §10); an empty or absent list allows every value."""
+
+    devices = serializers.ListField(child=serializers.CharField(), required=False, default=list)
+    benches = serializers.ListField(child=serializers.CharField(), required=False, default=list)
+    axes = serializers.ListField(child=serializers.CharField(), required=False, default=list)
+    frequencies_hz = serializers.ListField(
+        child=serializers.FloatField(), required=False, default=list
+    )
+
+    def scope(self) -> Scope:
+        data = valid_data(self)
+        return Scope(
+            devices=data["devices"],
+            benches=data["benches"],
+            axes=data["axes"],
+            frequencies_hz=data["frequencies_hz"],
+        )
+
+
 # ---------------------------------------------------------------- comparisons
 
 
@@ -105,6 +130,8 @@ class ComparisonDetailSerializer(serializers.ModelSerializer):
             "n_measurement_points",
             "participant_code",
             "roles",
+            "enrolment_open",
+            "enrolment_closes",
         ]
 
     def get_n_measurement_points(self, obj: Comparison) -> int:

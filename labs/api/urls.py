@@ -2,12 +2,13 @@
 
 from django.urls import path
 
-from labs.api import raw_views, views
+from labs.api import enrolment_views, raw_views, views
 
 app_name = "api"
 
 urlpatterns = [
     path("", views.ApiRoot.as_view(), name="root"),
+    path("calls/", enrolment_views.CallList.as_view(), name="call-list"),
     path("comparisons/", views.ComparisonList.as_view(), name="comparison-list"),
     path("comparisons/<slug:code>/", views.ComparisonDetail.as_view(), name="comparison-detail"),
     path(
@@ -34,6 +35,21 @@ urlpatterns = [
         "comparisons/<slug:code>/submissions/<int:version>/",
         views.SubmissionDetail.as_view(),
         name="submission-detail",
+    ),
+    path(
+        "comparisons/<slug:code>/applications/",
+        enrolment_views.ApplicationCollection.as_view(),
+        name="application-list",
+    ),
+    path(
+        "comparisons/<slug:code>/applications/<int:pk>/accept/",
+        enrolment_views.ApplicationAccept.as_view(),
+        name="application-accept",
+    ),
+    path(
+        "comparisons/<slug:code>/applications/<int:pk>/decline/",
+        enrolment_views.ApplicationDecline.as_view(),
+        name="application-decline",
     ),
     path(
         "comparisons/<slug:code>/raw-data/",

@@ -16,7 +16,7 @@ from django.utils.html import format_html
 from common import numbers
 from common.points import format_number, point_label
 from labs.access import managed_labs
-from labs.models import Laboratory, Participant, Submission
+from labs.models import Enrolment, Laboratory, Participant, Submission
 from labs.notices import notices_unread_count
 from labs.selectors import scope_text
 from proficiency.models import ComparisonStatus, MeasurementPoint
@@ -173,6 +173,7 @@ def unit_heading(unit: str) -> str:
 
 
 @register.filter
-def scope(participant: Participant) -> str:
-    """A participant's scope in words (``labs.selectors.scope_text``)."""
+def scope(participant: Participant | Enrolment) -> str:
+    """A participant's scope (or the one an application asks for) in words
+    (``labs.selectors.scope_text``)."""
     return scope_text(participant)

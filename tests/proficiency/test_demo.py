@@ -10,9 +10,11 @@ from django.contrib.auth import get_user_model
 from django.core.management import call_command
 from django.db.models import Model
 
-from coordination.demo import DEMO_CODE, OUTLIER_LAB
-from labs.models import Laboratory, Membership, Participant, Result, Submission
+from coordination.demo import CALL_CODE, DEMO_CODE, OUTLIER_LAB
+from labs.models import Enrolment, Laboratory, Membership, Notice, Participant, Result, Submission
+from labs.selectors import scope_text
 from proficiency.models import Comparison, Device, MeasurementPoint
+from proficiency.selectors import open_calls
 
 pytestmark = pytest.mark.django_db
 REFERENCE = Path(__file__).resolve().parents[2] / "docs" / "reference-data"
@@ -29,6 +31,7 @@ def counts() -> dict[str, int]:
         Submission,
         Result,
         get_user_model(),
+        Enrolment,
     ]
     return {m.__name__: m._default_manager.count() for m in models}
 
@@ -38,9 +41,10 @@ def test_load_demo_twice_gives_the_same_rows():
     call_command("load_demo", password="demo-password-1", stdout=out)
     first = counts()
     assert first == {
-        "Comparison": 1,
-        "Device": 3,
-        "MeasurementPoint": 81,
+        # the demo round, and IMU-2025-CALL with its call open (2 devices, 18 linear points)
+        "Comparison": 2,
+        "Device": 3 + 2,
+        "MeasurementPoint": 81 + 18,
         "Laboratory": 12,
         "Membership": 13,
         "Participant": 12,
@@ -48,6 +52,7 @@ def test_load_demo_twice_gives_the_same_rows():
         # 2 bench labs (27 + 54 points) and 10 labs measuring all 81 points
         "Result": 27 + 54 + 10 * 81,
         "User": 15,
+        "Enrolment": 1,
     }
     assert "coordinator" in out.getvalue() and "demo-password-1" in out.getvalue()
     out2 = StringIO()
@@ -73,6 +78,26 @@ def test_demo_accounts_and_roles():
     manager = Membership.objects.get(user__username="lab03-manager")
     assert (staff.role, manager.role) == ("staff", "manager")
     assert manager.laboratory == staff.laboratory
+
+
+def test_demo_has_an_open_call_with_one_pending_application():
+    out = StringIO()
+    call_command("load_demo", password="demo-password-1", stdout=out)
+    assert [c.code for c in open_calls()] == [CALL_CODE]
+    call = Comparison.objects.get(code=CALL_CODE)
+    assert call.status == "draft"
+    assert call.coordinators.filter(username="coordinator").exists()
+    application = Enrolment.objects.get()
+    assert application.comparison == call
+    assert application.status == Enrolment.Status.PENDING
+    assert application.applied_by is not None
+    assert application.applied_by.username == "lab03-manager"
+    assert scope_text(application) == "device MEMS 1"
+    assert not call.participants.exists()
+    assert not Notice.objects.filter(comparison=call).exists()  # the demo e-mails nobody
+    assert f"Open call {CALL_CODE}: 18 measurement points, 1 pending application" in (
+        out.getvalue()
+    )
 
 
 def aggregate(values, u):

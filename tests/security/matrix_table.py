@@ -55,6 +55,13 @@ PK = {
     "coordinator/<slug:code>/publication/<int:pk>/": "result",
     "coordinator/<slug:code>/publication/<int:pk>/progress/": "result",
     "api/v1/publications/<int:pk>/": "result",
+    # the world holds no application either: any pk is nobody's -> 404 (or the coordinator
+    # pages' 404 for the comparison first); tests/labs/test_enrolment.py checks real ones
+    "lab/applications/<int:pk>/withdraw/": "result",
+    "coordinator/<slug:code>/applications/<int:pk>/accept/": "result",
+    "coordinator/<slug:code>/applications/<int:pk>/decline/": "result",
+    "api/v1/comparisons/<slug:code>/applications/<int:pk>/accept/": "result",
+    "api/v1/comparisons/<slug:code>/applications/<int:pk>/decline/": "result",
 }
 #: the password-reset link carries its own token (an invalid one here)
 TOKEN = {"accounts/reset/<uidb64>/<token>/": "reset_token"}
@@ -115,6 +122,22 @@ TABLE: dict[str, Row] = {
     "lab/notices/read/": Row(
         get="302 405 405 405 405 405 302 302 405",
         post="302 302 302 302 302 302 302 302 302",
+    ),
+    # the open calls, read by every signed-in person (a sentence says who may apply)
+    "lab/calls/": Row(
+        get="302 200 200 200 200 200 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    # lab managers only (404 for staff, coordinators and superusers, who manage no lab); C1
+    # is visible to lab A, which takes part: the form says so and stores nothing
+    "lab/calls/<slug:code>/apply/": Row(
+        get="302 404 200 404 404 404 302 302 404",
+        post="302 404 200 404 404 404 302 302 404",
+    ),
+    # an application of a lab the user manages, POST only; the world has none -> 404
+    "lab/applications/<int:pk>/withdraw/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
     ),
     # managers are redirected to their lab's key page
     "lab/api-keys/": Row(
@@ -178,6 +201,19 @@ TABLE: dict[str, Row] = {
     "coordinator/<slug:code>/participants/<str:participant>/reference/": Row(
         get="302 405 405 405 405 405 302 302 405",
         post="302 404 404 404 302 404 302 302 302",
+    ),
+    # the round's coordinators; an application they do not have (none in the world) -> 404
+    "coordinator/<slug:code>/applications/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/applications/<int:pk>/accept/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
+    "coordinator/<slug:code>/applications/<int:pk>/decline/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 404 404 404 404 404 302 302 404",
     ),
     "coordinator/<slug:code>/review/": Row(
         get="302 404 404 404 200 404 302 302 200",
@@ -331,6 +367,11 @@ TABLE: dict[str, Row] = {
         get="200 200 200 200 200 200 200 200 200",
         post="405 405 405 405 405 405 405 405 405",
     ),
+    # the rounds taking applications, for every caller (none in the world)
+    "api/v1/calls/": Row(
+        get="401 200 200 200 200 200 200 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
     # POST {}: 403 without add_comparison, 400 (empty body) with it
     "api/v1/comparisons/": Row(
         get="401 200 200 200 200 200 200 401 200",
@@ -452,6 +493,22 @@ TABLE: dict[str, Row] = {
     "coordinator/<slug:code>/raw-data/": Row(
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
+    ),
+    # C1 takes no applications but is visible to its labs and coordinators: GET lists their
+    # own (coordinators all); POST: 409 for lab A's manager and key (it takes part), 403 for
+    # staff and for people who manage no laboratory; coord2 does not see C1 -> 404
+    "api/v1/comparisons/<slug:code>/applications/": Row(
+        get="401 200 200 200 200 404 200 401 200",
+        post="401 403 409 403 403 404 409 401 403",
+    ),
+    # the world holds no application: 404 for everyone signed in
+    "api/v1/comparisons/<slug:code>/applications/<int:pk>/accept/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 404 404 404 404 404 404 401 404",
+    ),
+    "api/v1/comparisons/<slug:code>/applications/<int:pk>/decline/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 404 404 404 404 404 404 401 404",
     ),
     # POST JSON: 415 (multipart only) once the caller may upload; coordinators 403
     "api/v1/comparisons/<slug:code>/raw-data/": Row(

@@ -6,7 +6,10 @@ from coordination.demo import load_demo
 
 
 class Command(BaseCommand):
-    help = "Create the demo comparison IMU-2024-DEMO with 12 laboratories (idempotent)."
+    help = (
+        "Create the demo comparison IMU-2024-DEMO with 12 laboratories, and the round "
+        "IMU-2025-CALL with its call for participation open (idempotent)."
+    )
 
     def add_arguments(self, parser):
         parser.add_argument(
@@ -22,6 +25,14 @@ class Command(BaseCommand):
             f"{c.measurement_points.count()} measurement points, "
             f"{c.participants.count()} participants."
         )
+        call = summary.call
+        if call is not None:
+            pending = call.enrolments.filter(status="pending").count()
+            self.stdout.write(
+                f"Open call {call.code}: {call.measurement_points.count()} measurement points, "
+                f"{pending} pending application{'' if pending == 1 else 's'} (lab03-manager "
+                "applied; the coordinator accepts or declines it)."
+            )
         if summary.created_users:
             self.stdout.write("Demo logins (shown once; write them down):")
             for username, pw in summary.created_users.items():
