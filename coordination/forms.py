@@ -10,6 +10,7 @@ from django import forms
 from common.forms import BootstrapMixin
 from common.points import format_number
 from labs.models import Laboratory, Participant
+from labs.selectors import REVIEW_STATUSES
 from labs.services import Scope
 from proficiency import protocols
 from proficiency.models import (
@@ -229,6 +230,37 @@ class DecisionForm(BootstrapMixin, forms.Form):
         widget=forms.Textarea(attrs={"rows": 3}),
         help_text="Required for a rejection: the laboratory reads it.",
     )
+
+
+_SMALL = "form-select form-select-sm"
+
+
+class ReviewFilterForm(forms.Form):
+    """The review list's filters (GET): a latest version's status, its completeness. A
+    value that is not offered is ignored, as if not given."""
+
+    status = forms.ChoiceField(required=False, widget=forms.Select(attrs={"class": _SMALL}))
+    complete = forms.ChoiceField(
+        required=False, label="Completeness", widget=forms.Select(attrs={"class": _SMALL}),
+        choices=[("", "Any"), ("complete", "Complete"), ("incomplete", "Incomplete")],
+    )  # fmt: skip
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        statuses = [(s, s.capitalize()) for s in REVIEW_STATUSES if s != "none"]
+        cast(forms.ChoiceField, self.fields["status"]).choices = [
+            ("", "Any"),
+            *statuses,
+            ("none", "No submission"),
+        ]
+
+    def filters(self) -> dict[str, str]:
+        """The valid filters given, by name (a bad value is dropped, the others kept)."""
+        self.is_valid()
+        data = getattr(self, "cleaned_data", {})
+        return {
+            name: data[name] for name in self.fields if name not in self.errors and data.get(name)
+        }
 
 
 class ReportNotesForm(BootstrapMixin, forms.Form):

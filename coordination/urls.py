@@ -29,6 +29,7 @@ urlpatterns = [
         name="reference",
     ),
     path(C + "review/", views.review, name="review"),
+    path(C + "review/accept-complete/", views.accept_complete, name="accept_complete"),
     path(
         C + "review/<str:participant>/v<int:version>/",
         views.submission_review,
