@@ -101,8 +101,8 @@ def test_accept_all_complete_accepts_exactly_those_with_one_notice_each(
     assert sorted(s.participant.code for s in accepted) == codes
     assert all(s.decided_at is not None for s in accepted)
     for key in ("incomplete", "checked"):
-        assert Submission.objects.get(participant__code=waiting[key],
-                                      participant__comparison=demo).status == "submitted"  # fmt: skip
+        kept = Submission.objects.get(participant__code=waiting[key], participant__comparison=demo)
+        assert kept.status == "submitted"
     drafted = Submission.objects.filter(participant__code=waiting["drafted"],
                                         participant__comparison=demo)  # fmt: skip
     assert sorted(drafted.values_list("version", "status")) == [(1, "submitted"), (2, "draft")]
@@ -214,9 +214,7 @@ def test_review_filters_with_their_counts(client, demo, waiting):
     assert '<option value="draft">Draft (1)</option>' in chosen
     assert '<option value="incomplete" selected>Incomplete (1)</option>' in chosen
     drafts = client.get(f"{C}review/?status=draft").content.decode()
-    assert re.findall(r'<td data-label="Code"><code>(L\d+)</code>', drafts) == [
-        waiting["drafted"]
-    ]
+    assert re.findall(r'<td data-label="Code"><code>(L\d+)</code>', drafts) == [waiting["drafted"]]
     # a value that is not offered is ignored
     bad = client.get(f"{C}review/?status=withdrawn&complete=complete")
     assert bad.status_code == 200
