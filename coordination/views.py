@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, cast
 from django import forms
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
-from django.core.paginator import Paginator
+from django.core.paginator import EmptyPage, Page, PageNotAnInteger, Paginator
 from django.db.models import Count, OuterRef, QuerySet, Subquery
 from django.http import Http404, HttpResponse, QueryDict
 from django.shortcuts import get_object_or_404, redirect, render
@@ -23,6 +23,7 @@ from django.views.decorators.http import require_GET, require_http_methods, requ
 
 from analysis.reports.services import report_notes_update
 from common.errors import ApplicationError, refusal
+from common.pagination import CountSparingPaginator
 from common.sizes import counted
 from coordination.confirm import ACTIONS, confirmation
 from coordination.forms import (
@@ -136,6 +137,20 @@ def comparison_edit(request: AuthenticatedHttpRequest, code: str) -> HttpRespons
 
 #: the coordinator's comparison page lists this many of the newest notices
 NOTICES_SHOWN = 200
+#: participants per page of the comparison page's participants table
+PARTICIPANTS_PER_PAGE = 50
+
+
+def _page(participants: QuerySet[Participant], number: str | None) -> Page:
+    """One page of the participants table; the first page of a round of at most
+    :data:`PARTICIPANTS_PER_PAGE` is read without counting (common.pagination)."""
+    paginator = CountSparingPaginator(participants, PARTICIPANTS_PER_PAGE)
+    try:
+        return paginator.page(number or 1)
+    except PageNotAnInteger:
+        return paginator.page(1)
+    except EmptyPage:
+        return paginator.page(paginator.num_pages)
 
 
 @login_required
@@ -149,7 +164,8 @@ def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
         "comparison": comparison,
         "devices": comparison.devices.all(),
         "points": comparison.measurement_points.select_related("device"),
-        "participants": participants.order_by("code"),
+        # every participant in a plain table, 50 to a page
+        "participants": _page(participants.order_by("code"), request.GET.get("page")),
         "transitions": [t for t in comparison_allowed_transitions(comparison)
                         if t in (ComparisonStatus.OPEN, ComparisonStatus.CLOSED)],
         "template": protocols.TEMPLATES.get(comparison.protocol),
