@@ -210,17 +210,27 @@ class ScopeForm(BootstrapMixin, forms.Form):
 
 
 class InviteForm(ScopeForm):
+    """The laboratories to invite as checkboxes (no Ctrl-click); ``search`` narrows the
+    laboratories offered to those whose name contains it, and ``select_all`` ticks every
+    one offered: both come from the page's query string, so they work without JavaScript."""
+
     laboratories = forms.ModelMultipleChoiceField(
-        queryset=Laboratory.objects.none(), widget=forms.SelectMultiple(attrs={"size": 8})
+        queryset=Laboratory.objects.none(), widget=forms.CheckboxSelectMultiple
     )
     field_order = ["laboratories"]
 
-    def __init__(self, *args: Any, comparison: Comparison, **kwargs: Any) -> None:
+    def __init__(
+        self, *args: Any, comparison: Comparison, search: str = "", select_all: bool = False,
+        **kwargs: Any,
+    ) -> None:  # fmt: skip
         super().__init__(*args, comparison=comparison, **kwargs)
         field = cast(forms.ModelMultipleChoiceField, self.fields["laboratories"])
-        field.queryset = Laboratory.objects.exclude(participations__comparison=comparison).order_by(
-            "name"
-        )
+        uninvited = Laboratory.objects.exclude(participations__comparison=comparison)
+        self.n_uninvited = uninvited.count()
+        offered = uninvited.filter(name__icontains=search) if search else uninvited
+        field.queryset = offered.order_by("name")
+        if select_all and not self.is_bound:
+            self.initial["laboratories"] = list(field.queryset)
 
 
 class DecisionForm(BootstrapMixin, forms.Form):

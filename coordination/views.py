@@ -323,7 +323,11 @@ def point_edit(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpRes
 @require_http_methods(["GET", "POST"])
 def participants_invite(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
-    form = InviteForm(request.POST or None, comparison=comparison)
+    search = request.GET.get("q", "").strip()[:80]
+    form = InviteForm(
+        request.POST or None, comparison=comparison, search=search,
+        select_all=request.GET.get("all") == "1",
+    )  # fmt: skip
     if request.method == "POST" and form.is_valid():
         labs = list(form.cleaned_data["laboratories"])
         try:
@@ -338,7 +342,11 @@ def participants_invite(request: AuthenticatedHttpRequest, code: str) -> HttpRes
                 request, f"{counted(len(added), 'laboratory', 'laboratories')} invited: {codes}."
             )
             return redirect("coordinator:comparison", code=code)
-    return render(request, "coordinator/invite.html", {"form": form, "comparison": comparison})
+    query = QueryDict(mutable=True)
+    if search:
+        query["q"] = search
+    context = {"form": form, "comparison": comparison, "search": search, "query": query.urlencode()}
+    return render(request, "coordinator/invite.html", context)
 
 
 @login_required
