@@ -14,6 +14,7 @@ from rest_framework import serializers
 from common.rendering import ValuesRendering
 from labs.models import Result, Submission
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
+from proficiency.serializers import ReminderDaysField
 from proficiency.services import DEVICE_FIELDS
 
 # ---------------------------------------------------------------- errors
@@ -90,6 +91,7 @@ class ComparisonDetailSerializer(serializers.ModelSerializer):
     n_measurement_points = serializers.SerializerMethodField()
     participant_code = serializers.SerializerMethodField()
     roles = serializers.SerializerMethodField()
+    reminder_days = ReminderDaysField(read_only=True)
 
     class Meta:
         model = Comparison
@@ -101,6 +103,7 @@ class ComparisonDetailSerializer(serializers.ModelSerializer):
             "status",
             "submission_deadline",
             "en_limit",
+            "reminder_days",
             "devices",
             "n_measurement_points",
             "participant_code",
