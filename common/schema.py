@@ -30,6 +30,7 @@ PATH_TAGS = (
     ("/publish", "round life cycle (coordinators)"),
     ("/decision", "review (coordinators)"),
     ("/check-requests", "review (coordinators)"),
+    ("/accept-complete", "review (coordinators)"),
 )
 
 
