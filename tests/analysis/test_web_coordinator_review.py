@@ -46,9 +46,9 @@ def waiting(demo) -> dict[str, str]:
         status=Submission.Status.SUBMITTED, decided_at=None
     )
     incomplete = Participant.objects.get(comparison=demo, laboratory__name__startswith="Baltic")
-    incomplete.submissions.get().results.order_by("pk").first().delete()
+    incomplete.submissions.get().results.order_by("pk")[0].delete()
     checked = Participant.objects.get(comparison=demo, laboratory__name__startswith="Castile")
-    submission_request_check(result=checked.submissions.get().results.first(), user=None)
+    submission_request_check(result=checked.submissions.get().results.order_by("pk")[0], user=None)
     drafted = Participant.objects.get(comparison=demo, laboratory__name__startswith="Danube")
     Submission.objects.create(participant=drafted, version=2, status=Submission.Status.DRAFT)
     return {"incomplete": incomplete.code, "checked": checked.code, "drafted": drafted.code}
@@ -108,7 +108,7 @@ def test_accept_all_complete_accepts_exactly_those_with_one_notice_each(
     assert sorted(drafted.values_list("version", "status")) == [(1, "submitted"), (2, "draft")]
     notices = Notice.objects.filter(kind=Notice.Kind.ACCEPTED)
     assert notices.count() == before + 9
-    assert sorted(n.participant.code for n in notices) == codes
+    assert sorted(n.participant.code for n in notices if n.participant) == codes
     assert len(mail.outbox) == 9
     shown = client.get(response["Location"]).content.decode()
     assert f"Accepted 9 submissions: {', '.join(codes)}." in shown

@@ -8,7 +8,8 @@ from django.contrib.auth import get_user_model
 from django.urls import reverse
 
 from analysis.models import AssignedValue, Score
-from labs.models import Result, Submission
+from labs.models import RawRecomputation, RawRecord, Result, Submission
+from proficiency.models import Device
 
 CODE = "IMU-2024-DEMO"
 C = f"/coordinator/{CODE}/"
@@ -116,11 +117,9 @@ def test_results_page_writes_assigned_values_by_their_u(client, run):
 NOISY = 3.4160160000000004  # 3.416016 after one float operation too many
 
 
-def plant_raw(demo) -> tuple[object, object]:
+def plant_raw(demo) -> tuple[RawRecord, Device]:
     """Noise in every number of the demo's raw records' recomputations, and in a device's
     nominal sensitivity and tolerance."""
-    from labs.models import RawRecomputation
-
     records = RawRecomputation.objects.filter(record__participant__comparison=demo)
     assert records.exists()
     records.update(
@@ -132,9 +131,10 @@ def plant_raw(demo) -> tuple[object, object]:
                  "contribution": 0.004560000000000001}],
     )  # fmt: skip
     device = demo.devices.order_by("name").first()
+    assert device is not None
     device.nominal_sensitivity, device.tolerance = NOISY, 0.30000000000000004
     device.save()
-    return records.first().record, device
+    return records.get(record__data_name="demo-linear.bin").record, device
 
 
 def no_noise(page: str) -> None:
@@ -146,8 +146,7 @@ def no_noise(page: str) -> None:
 
 def test_raw_data_pages_round_by_the_uncertainty(client, demo):
     record, _ = plant_raw(demo)
-    participant = record.participant
-    client.force_login(participant.laboratory.members.first().user)
+    client.force_login(record.participant.laboratory.members.order_by("pk")[0].user)
     listing = client.get(reverse("labs:raw_data", args=[CODE]))
     assert listing.status_code == 200
     page = listing.content.decode()
