@@ -474,16 +474,19 @@ def accept_complete(request: AuthenticatedHttpRequest, code: str) -> HttpRespons
         messages.warning(request, "No submission is complete and waiting for a decision: "
                          "nothing was accepted.")  # fmt: skip
     added, gone = sorted(set(codes) - expected), sorted(expected - set(codes))
-    if added or gone:
+    if "expected" in request.POST and (added or gone):  # what the confirmation page listed
         changed = []
         if added:
             were = "was" if len(added) == 1 else "were"
-            changed.append(f"{', '.join(added)} became complete and {were} accepted too")
-        if gone:
             changed.append(
-                f"{', '.join(gone)} {'was' if len(gone) == 1 else 'were'} not accepted: no longer "
-                "complete and waiting (a new version arrived, it was decided, or it was asked "
-                "to check a result)"
+                f"{', '.join(added)} {were} accepted too (complete and waiting since then)"
+            )
+        if gone:
+            were = "was" if len(gone) == 1 else "were"
+            changed.append(
+                f"{', '.join(gone)} {were} not accepted: no longer complete and waiting (a new "
+                "version arrived, it was decided, its scope changed or it was asked to check a "
+                "result)"
             )
         messages.info(request, "The list changed since the confirmation page: "
                       + "; ".join(changed) + ".")  # fmt: skip

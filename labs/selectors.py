@@ -174,19 +174,6 @@ def participant_points(participant: Participant) -> QuerySet[MeasurementPoint]:
     )
 
 
-def participants_point_counts(
-    comparison: Comparison, participants: Sequence[Participant]
-) -> tuple[int, dict[int, int]]:
-    """The comparison's number of measurement points, and how many of them each of
-    ``participants`` reports (its scope's, :func:`participant_points`) by its pk: one
-    query, whatever the number of participants (a conditional count each)."""
-    counts = MeasurementPoint.objects.filter(comparison=comparison).aggregate(
-        total=Count("pk"),
-        **{f"p{p.pk}": Count("pk", filter=scope_filter(p)) for p in participants},
-    )
-    return counts["total"], {p.pk: counts[f"p{p.pk}"] for p in participants}
-
-
 @dataclass(frozen=True)
 class ReviewRow:
     """One participant on the coordinator's review list: its latest version (none: the
@@ -206,7 +193,7 @@ class ReviewRow:
     @property
     def complete(self) -> bool:
         """A result at every point of the participant's own scope (docs/domain.md §10)."""
-        return self.version is not None and self.n_results == self.n_points
+        return self.version is not None and 0 < self.n_points == self.n_results
 
     @property
     def acceptable(self) -> bool:

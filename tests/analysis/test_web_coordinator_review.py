@@ -148,7 +148,7 @@ def test_accept_all_complete_takes_the_set_of_the_moment_and_says_what_changed(
     assert sorted(s.participant.code for s in accepted) == now
     text = response.content.decode()
     assert f"Accepted 9 submissions: {', '.join(now)}." in text
-    assert f"{baltic.code} became complete and was accepted too" in text
+    assert f"{baltic.code} was accepted too (complete and waiting since then)" in text
     assert f"{elbe} was not accepted: no longer complete and waiting" in text
 
 
