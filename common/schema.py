@@ -33,6 +33,7 @@ PATH_TAGS = (
     ("/publications", "round life cycle (coordinators)"),
     ("/decision", "review (coordinators)"),
     ("/check-requests", "review (coordinators)"),
+    ("/accept-complete", "review (coordinators)"),
 )
 
 

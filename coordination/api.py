@@ -1,12 +1,13 @@
-"""Coordinator setup API: add devices, generate the point grid, invite laboratories
-(docs/interfaces.md §3, extended; creating a comparison is ``POST /api/v1/comparisons/``,
-labs.api.views.ComparisonList). Thin views over ``proficiency.services`` and
-``labs.services``; the same rules as the coordinator pages."""
+"""Coordinator setup API: add devices, generate the point grid, invite laboratories,
+accept every complete submission (docs/interfaces.md §3, extended; creating a comparison
+is ``POST /api/v1/comparisons/``, labs.api.views.ComparisonList). Thin views over
+``proficiency.services`` and ``labs.services``; the same rules as the coordinator pages."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
+from django.contrib.auth.models import User
 from django.shortcuts import get_object_or_404
 from django.urls import path
 from drf_spectacular.utils import extend_schema, extend_schema_field
@@ -20,6 +21,7 @@ from labs.access import require_coordinator
 from labs.api.serializers import ScopeSerializer
 from labs.api.views import ApiView
 from labs.models import Laboratory, Participant
+from labs.review import submissions_accept_complete
 from labs.selectors import participant_points, scope_text
 from labs.services import Scope, participant_scope_set, participants_invite
 from proficiency import protocols
@@ -181,6 +183,28 @@ class ParticipantScope(ApiView):
         return Response(scope_body(chosen))
 
 
+class AcceptedSerializer(serializers.Serializer):
+    accepted = serializers.ListField(child=serializers.CharField(), help_text="participant codes")
+    count = serializers.IntegerField()
+
+
+class AcceptComplete(ApiView):
+    """Accept every participant's latest version that is submitted, undecided, complete for
+    its scope and not asked to check (docs/lifecycles.md §2), in one transaction; each
+    laboratory is told as by a single acceptance. None waiting: an empty list."""
+
+    @extend_schema(request=None, responses={200: AcceptedSerializer})
+    def post(self, request: Request, code: str) -> Response:
+        access = self.access(code)
+        require_coordinator(access)
+        accepted = submissions_accept_complete(
+            comparison=access.comparison,
+            user=cast(User, request.user),  # a coordinator
+        )
+        codes = [s.participant.code for s in accepted]
+        return Response({"accepted": codes, "count": len(codes)})
+
+
 urlpatterns = [
     path("comparisons/<slug:code>/devices/", DeviceAdd.as_view(), name="device-add"),
     path(
@@ -189,6 +213,11 @@ urlpatterns = [
         name="measurand-generate",
     ),
     path("comparisons/<slug:code>/participants/", Invite.as_view(), name="participant-invite"),
+    path(
+        "comparisons/<slug:code>/submissions/accept-complete/",
+        AcceptComplete.as_view(),
+        name="submission-accept-complete",
+    ),
     path(
         "comparisons/<slug:code>/participants/<str:participant>/scope/",
         ParticipantScope.as_view(),

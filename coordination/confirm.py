@@ -1,5 +1,6 @@
 """What a coordinator's action will do, said before it is done: the confirmation pages of
-open, close, run and publish (docs/lifecycles.md, the comparison's life cycle).
+open, close, run and publish (docs/lifecycles.md, the comparison's life cycle) and of
+accepting every complete submission at once (docs/lifecycles.md §2).
 
 Each action's page states its consequences with the round's own numbers (how many
 laboratories are e-mailed, how many submissions are analysed, what cannot be undone) and
@@ -17,12 +18,13 @@ from analysis.publication import publish_refusal
 from analysis.selectors import current_run
 from common.sizes import counted
 from labs.models import Submission
-from labs.selectors import current_submissions
+from labs.notices import laboratories_with_addressees
+from labs.selectors import acceptable_submissions, current_submissions
 from proficiency.models import Comparison, ComparisonStatus
 from proficiency.services import comparison_allowed_transitions
 
 S = ComparisonStatus
-ACTIONS = ("open", "close", "run", "publish")
+ACTIONS = ("open", "close", "run", "publish", "accept-complete")
 
 
 @dataclass(frozen=True)
@@ -36,11 +38,18 @@ class Confirmation:
     fields: dict[str, str] = field(default_factory=dict)  # hidden form fields
     final: bool = False  # cannot be undone: the button is red
     refused: str = ""  # why the action is not possible now (no form then)
+    back: str = ""  # where Cancel leads (the comparison's page when empty)
 
 
 def confirmation(comparison: Comparison, action: str) -> Confirmation:
     """The page of ``action`` (one of :data:`ACTIONS`) for ``comparison``."""
-    return {"open": _open, "close": _close, "run": _run, "publish": _publish}[action](comparison)
+    return {
+        "open": _open,
+        "close": _close,
+        "run": _run,
+        "publish": _publish,
+        "accept-complete": _accept_complete,
+    }[action](comparison)
 
 
 def _labs(comparison: Comparison) -> str:
@@ -160,3 +169,43 @@ def _publish(c: Comparison) -> Confirmation:
 
 def _not_now(c: Comparison, done: str) -> str:
     return f"{c.code} is {c.get_status_display().lower()}: it cannot be {done} now."
+
+
+def _accept_complete(c: Comparison) -> Confirmation:
+    rows = acceptable_submissions(c)
+    codes = [row.participant.code for row in rows]
+    labs = {row.participant.laboratory_id for row in rows}
+    mailed = len(laboratories_with_addressees(list(labs)))
+    inbox_only = len(labs) - mailed
+    told = (
+        "1 laboratory is e-mailed that its submission is accepted"
+        if mailed == 1
+        else f"{counted(mailed, 'laboratory', 'laboratories')} are e-mailed that their "
+        "submission is accepted"
+    )
+    if inbox_only:
+        told += (
+            f"; {counted(inbox_only, 'laboratory', 'laboratories')} without an e-mail address "
+            "will find the notice in the inbox only"
+        )
+    return Confirmation(
+        title=f"Accept {counted(len(rows), 'complete submission')} of {c.code}",
+        button=f"Accept {counted(len(rows), 'submission')}",
+        action=reverse("coordinator:accept_complete", args=[c.code]),
+        fields={"expected": ",".join(codes)},
+        back=reverse("coordinator:review", args=[c.code]),
+        consequences=[
+            f"Accepted: {', '.join(codes)}: each participant's latest version, submitted and "
+            "not yet decided, with a result at every point of the participant's scope and no "
+            "request to check a result.",
+            told + ".",
+            "An accepted version is final; a correction is a new version. If a submission "
+            "arrives or is withdrawn before you confirm, the button accepts what is complete "
+            "then and says what changed.",
+        ],
+        refused=""
+        if rows
+        else (
+            f"No submission of {c.code} is complete and waiting for a decision: nothing to accept."
+        ),
+    )

@@ -10,6 +10,7 @@ from django import forms
 from common.forms import BootstrapMixin
 from common.points import format_number
 from labs.models import Laboratory, Participant
+from labs.selectors import REVIEW_STATUSES
 from labs.services import Scope
 from proficiency import protocols
 from proficiency.models import (
@@ -216,17 +217,27 @@ class ScopeForm(BootstrapMixin, forms.Form):
 
 
 class InviteForm(ScopeForm):
+    """The laboratories to invite as checkboxes (no Ctrl-click); ``search`` narrows the
+    laboratories offered to those whose name contains it, and ``select_all`` ticks every
+    one offered: both come from the page's query string, so they work without JavaScript."""
+
     laboratories = forms.ModelMultipleChoiceField(
-        queryset=Laboratory.objects.none(), widget=forms.SelectMultiple(attrs={"size": 8})
+        queryset=Laboratory.objects.none(), widget=forms.CheckboxSelectMultiple
     )
     field_order = ["laboratories"]
 
-    def __init__(self, *args: Any, comparison: Comparison, **kwargs: Any) -> None:
+    def __init__(
+        self, *args: Any, comparison: Comparison, search: str = "", select_all: bool = False,
+        **kwargs: Any,
+    ) -> None:  # fmt: skip
         super().__init__(*args, comparison=comparison, **kwargs)
         field = cast(forms.ModelMultipleChoiceField, self.fields["laboratories"])
-        field.queryset = Laboratory.objects.exclude(participations__comparison=comparison).order_by(
-            "name"
-        )
+        uninvited = Laboratory.objects.exclude(participations__comparison=comparison)
+        self.n_uninvited = uninvited.count()
+        offered = uninvited.filter(name__icontains=search) if search else uninvited
+        field.queryset = offered.order_by("name")
+        if select_all and not self.is_bound:
+            self.initial["laboratories"] = list(field.queryset)
 
 
 class DecisionForm(BootstrapMixin, forms.Form):
@@ -243,6 +254,37 @@ class DeclineForm(BootstrapMixin, forms.Form):
         required=False, max_length=2_000, widget=forms.Textarea(attrs={"rows": 3}),
         help_text="Required: the laboratory reads it (e.g. the round is full for that bench).",
     )  # fmt: skip
+
+
+_SMALL = "form-select form-select-sm"
+
+
+class ReviewFilterForm(forms.Form):
+    """The review list's filters (GET): a latest version's status, its completeness. A
+    value that is not offered is ignored, as if not given."""
+
+    status = forms.ChoiceField(required=False, widget=forms.Select(attrs={"class": _SMALL}))
+    complete = forms.ChoiceField(
+        required=False, label="Completeness", widget=forms.Select(attrs={"class": _SMALL}),
+        choices=[("", "Any"), ("complete", "Complete"), ("incomplete", "Incomplete")],
+    )  # fmt: skip
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        statuses = [(s, s.capitalize()) for s in REVIEW_STATUSES if s != "none"]
+        cast(forms.ChoiceField, self.fields["status"]).choices = [
+            ("", "Any"),
+            *statuses,
+            ("none", "No submission"),
+        ]
+
+    def filters(self) -> dict[str, str]:
+        """The valid filters given, by name (a bad value is dropped, the others kept)."""
+        self.is_valid()
+        data = getattr(self, "cleaned_data", {})
+        return {
+            name: data[name] for name in self.fields if name not in self.errors and data.get(name)
+        }
 
 
 class ReportNotesForm(BootstrapMixin, forms.Form):

@@ -36,6 +36,7 @@ urlpatterns = [
         name="application_decline",
     ),
     path(C + "review/", views.review, name="review"),
+    path(C + "review/accept-complete/", views.accept_complete, name="accept_complete"),
     path(
         C + "review/<str:participant>/v<int:version>/",
         views.submission_review,

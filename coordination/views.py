@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import statistics
 from collections import Counter, defaultdict
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from django import forms
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
-from django.core.paginator import Paginator
+from django.core.paginator import EmptyPage, Page, PageNotAnInteger, Paginator
 from django.db.models import (
     Case,
     Count,
@@ -23,14 +23,15 @@ from django.db.models import (
     QuerySet,
     Subquery,
     When,
-    prefetch_related_objects,
 )
-from django.http import Http404, HttpResponse
+from django.http import Http404, HttpResponse, QueryDict
 from django.shortcuts import get_object_or_404, redirect, render
+from django.urls import reverse
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
 
 from analysis.reports.services import report_notes_update
 from common.errors import ApplicationError, refusal
+from common.pagination import CountSparingPaginator
 from common.points import format_number
 from common.sizes import counted
 from coordination.confirm import ACTIONS, confirmation
@@ -44,6 +45,7 @@ from coordination.forms import (
     PointGridForm,
     PointOverrideForm,
     ReportNotesForm,
+    ReviewFilterForm,
     ScopeForm,
 )
 from labs import services as labs_services
@@ -52,11 +54,12 @@ from labs.enrolment import enrolment_accept, enrolment_decline, enrolment_scope
 from labs.models import Enrolment, Participant, Result, Submission
 from labs.notices import notices_of_comparison
 from labs.raw_selectors import raw_record_figure, raw_records_of_comparison
-from labs.review import submission_decide, submission_request_check
+from labs.review import submission_decide, submission_request_check, submissions_accept_complete
 from labs.selectors import (
+    ReviewRow,
     current_submissions,
     participant_points,
-    participants_point_counts,
+    review_rows,
     scope_text,
 )
 from labs.services import comparison_move, participant_set_reference
@@ -146,6 +149,20 @@ def comparison_edit(request: AuthenticatedHttpRequest, code: str) -> HttpRespons
 
 #: the coordinator's comparison page lists this many of the newest notices
 NOTICES_SHOWN = 200
+#: participants per page of the comparison page's participants table
+PARTICIPANTS_PER_PAGE = 50
+
+
+def _page(participants: QuerySet[Participant], number: str | None) -> Page:
+    """One page of the participants table; the first page of a round of at most
+    :data:`PARTICIPANTS_PER_PAGE` is read without counting (common.pagination)."""
+    paginator = CountSparingPaginator(participants, PARTICIPANTS_PER_PAGE)
+    try:
+        return paginator.page(number or 1)
+    except PageNotAnInteger:
+        return paginator.page(1)
+    except EmptyPage:
+        return paginator.page(paginator.num_pages)
 
 
 @login_required
@@ -159,7 +176,8 @@ def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
         "comparison": comparison,
         "devices": comparison.devices.all(),
         "points": comparison.measurement_points.select_related("device"),
-        "participants": participants.order_by("code"),
+        # every participant in a plain table, 50 to a page
+        "participants": _page(participants.order_by("code"), request.GET.get("page")),
         "transitions": [t for t in comparison_allowed_transitions(comparison)
                         if t in (ComparisonStatus.OPEN, ComparisonStatus.CLOSED)],
         "template": protocols.TEMPLATES.get(comparison.protocol),
@@ -321,7 +339,11 @@ def point_edit(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpRes
 @require_http_methods(["GET", "POST"])
 def participants_invite(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
-    form = InviteForm(request.POST or None, comparison=comparison)
+    search = request.GET.get("q", "").strip()[:80]
+    form = InviteForm(
+        request.POST or None, comparison=comparison, search=search,
+        select_all=request.GET.get("all") == "1",
+    )  # fmt: skip
     if request.method == "POST" and form.is_valid():
         labs = list(form.cleaned_data["laboratories"])
         try:
@@ -336,7 +358,11 @@ def participants_invite(request: AuthenticatedHttpRequest, code: str) -> HttpRes
                 request, f"{counted(len(added), 'laboratory', 'laboratories')} invited: {codes}."
             )
             return redirect("coordinator:comparison", code=code)
-    return render(request, "coordinator/invite.html", {"form": form, "comparison": comparison})
+    query = QueryDict(mutable=True)
+    if search:
+        query["q"] = search
+    context = {"form": form, "comparison": comparison, "search": search, "query": query.urlencode()}
+    return render(request, "coordinator/invite.html", context)
 
 
 @login_required
@@ -489,26 +515,94 @@ def application_decline(request: AuthenticatedHttpRequest, code: str, pk: int) -
 REVIEW_PER_PAGE = 50
 
 
+def _review_filters(request: AuthenticatedHttpRequest) -> tuple[dict[str, str], str]:
+    """The review list's filters from the query string, and the query string that keeps
+    them (for the pages' links: the next and previous submission, back to the list)."""
+    filters = ReviewFilterForm(request.GET).filters()
+    query = QueryDict(mutable=True)
+    query.update(filters)
+    return filters, query.urlencode()
+
+
+def _matches(row: ReviewRow, filters: dict[str, str], *, without: str = "") -> bool:
+    status, complete = filters.get("status"), filters.get("complete")
+    if status and without != "status" and row.status != status:
+        return False
+    return not (complete and without != "complete" and row.complete != (complete == "complete"))
+
+
 @login_required
 @require_GET
 def review(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
-    participants = _latest_status(comparison.participants.select_related("laboratory"))
-    page = Paginator(participants.order_by("code"), REVIEW_PER_PAGE)
-    page_obj = page.get_page(request.GET.get("page"))
-    # completeness counts each participant's own points (its scope, docs/domain.md §10)
-    n_points, counts = participants_point_counts(comparison, list(page_obj))
-    for p in page_obj:
-        p.n_points = counts[p.pk]  # type: ignore[attr-defined]
-    # the page names the scope of those that do not report every point: their devices at once
-    prefetch_related_objects([p for p in page_obj if counts[p.pk] != n_points], "scope_devices")
+    rows = review_rows(comparison)
+    filters, query = _review_filters(request)
+    shown = [r for r in rows if _matches(r, filters)]
+    page_obj = Paginator(shown, REVIEW_PER_PAGE).get_page(request.GET.get("page"))
+    # each choice counted with the other filter applied: the rows choosing it would show
+    by_status = Counter(r.status for r in rows if _matches(r, filters, without="status"))
+    by_complete = Counter(
+        "complete" if r.complete else "incomplete"
+        for r in rows
+        if _matches(r, filters, without="complete")
+    )
+    form = ReviewFilterForm(request.GET)
+    form.filters()
+    for name, counts in (("status", by_status), ("complete", by_complete)):
+        field = cast(forms.ChoiceField, form.fields[name])
+        offered = cast(list[tuple[str, str]], field.choices)
+        field.choices = [
+            (value, f"{label} ({counts[value] if value else sum(counts.values())})")
+            for value, label in offered
+        ]
     context = {
         "comparison": comparison,
-        "participants": page_obj,
+        "rows": page_obj,
         "page_obj": page_obj,
-        "n_points": n_points,
+        "form": form,
+        "filters": filters,
+        "query": query,
+        "n_shown": len(shown),
+        "n_participants": len(rows),
+        "n_acceptable": sum(r.acceptable for r in rows),
     }
     return render(request, "coordinator/review.html", context)
+
+
+@login_required
+@require_POST
+def accept_complete(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
+    """Accept every complete submission waiting for a decision (the confirmation page,
+    ``confirm/accept-complete/``, lists them); the set is decided again here."""
+    comparison = coordinated(request, code)
+    expected = {c for c in request.POST.get("expected", "").split(",") if c}
+    accepted = submissions_accept_complete(comparison=comparison, user=request.user)
+    codes = [s.participant.code for s in accepted]
+    if codes:
+        messages.success(
+            request, f"Accepted {counted(len(codes), 'submission')}: {', '.join(codes)}."
+        )
+    else:
+        messages.warning(request, "No submission is complete and waiting for a decision: "
+                         "nothing was accepted.")  # fmt: skip
+    added, gone = sorted(set(codes) - expected), sorted(expected - set(codes))
+    if "expected" in request.POST and (added or gone):  # what the confirmation page listed
+        changed = []
+        if added:
+            were = "was" if len(added) == 1 else "were"
+            changed.append(
+                f"{', '.join(added)} {were} accepted too (complete and waiting since then)"
+            )
+        if gone:
+            were = "was" if len(gone) == 1 else "were"
+            changed.append(
+                f"{', '.join(gone)} {were} not accepted: no longer complete and waiting (a new "
+                "version arrived, it was decided, its scope changed or it was asked to check a "
+                "result)"
+            )
+        messages.info(request, "The list changed since the confirmation page: "
+                      + "; ".join(changed) + ".")  # fmt: skip
+    return redirect("coordinator:review", code=code)
 
 
 def _others(comparison: Comparison, participant: Participant) -> dict[int, list[tuple]]:
@@ -567,13 +661,24 @@ def submission_review(
             messages.success(
                 request, f"Version {decided.version} of {participant} {decided.status}."
             )
-            return redirect("coordinator:review", code=code)
+            back = reverse("coordinator:review", args=[code])
+            return redirect(f"{back}?{query}" if (query := _review_filters(request)[1]) else back)
+    filters, query = _review_filters(request)
+    listed = [r for r in review_rows(comparison) if r.version and _matches(r, filters)]
+    before = [r for r in listed if r.participant.code < participant]
+    after = [r for r in listed if r.participant.code > participant]
     context = {
         "comparison": comparison,
         "submission": submission,
         "form": form,
         "rows": _review_rows(submission),
         "may_decide": submission.status == St.SUBMITTED,
+        "previous": before[-1] if before else None,
+        "next": after[0] if after else None,
+        "query": query,
+        "position": len(before) + 1,
+        "n_listed": len(listed),
+        "listed": any(r.participant.code == participant for r in listed),
     }
     return render(request, "coordinator/submission.html", context)
 

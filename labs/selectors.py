@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from django.contrib.auth.models import AnonymousUser, User
 from django.db.models import (
+    BigIntegerField,
     BooleanField,
     Case,
     Count,
@@ -19,13 +20,15 @@ from django.db.models import (
     Subquery,
     Value,
     When,
+    prefetch_related_objects,
 )
+from django.db.models.functions import Cast, Substr
 
 from common.errors import NotVisible
 from common.points import POINT_LOOKUPS, format_number
 from common.rows import JoinedQuery, ModelColumns
 from labs.importers import COLUMNS, PointKey, ResultRow, TableContext, write_table
-from labs.models import Enrolment, Laboratory, Participant, Result, Submission
+from labs.models import Enrolment, Laboratory, Notice, Participant, Result, Submission
 from proficiency.models import Comparison, MeasurementPoint
 
 
@@ -171,17 +174,129 @@ def participant_points(participant: Participant) -> QuerySet[MeasurementPoint]:
     )
 
 
-def participants_point_counts(
-    comparison: Comparison, participants: Sequence[Participant]
-) -> tuple[int, dict[int, int]]:
-    """The comparison's number of measurement points, and how many of them each of
-    ``participants`` reports (its scope's, :func:`participant_points`) by its pk: one
-    query, whatever the number of participants (a conditional count each)."""
-    counts = MeasurementPoint.objects.filter(comparison=comparison).aggregate(
-        total=Count("pk"),
-        **{f"p{p.pk}": Count("pk", filter=scope_filter(p)) for p in participants},
+@dataclass(frozen=True)
+class ReviewRow:
+    """One participant on the coordinator's review list: its latest version (none: the
+    ``status`` is ``"none"``), how many of its scope's points that version has a result
+    for, and whether the laboratory was asked to check one of its results."""
+
+    participant: Participant
+    submission_id: int | None
+    version: int | None
+    status: str
+    n_results: int
+    n_points: int
+    checked: bool
+    #: whether the participant has a scope (it reports part of the comparison's points)
+    scoped: bool = False
+
+    @property
+    def complete(self) -> bool:
+        """A result at every point of the participant's own scope (docs/domain.md §10)."""
+        return self.version is not None and 0 < self.n_points == self.n_results
+
+    @property
+    def acceptable(self) -> bool:
+        """What "accept all complete" accepts (docs/lifecycles.md §2): the latest version,
+        submitted and not yet decided, complete for the scope, with no check request."""
+        return self.status == Submission.Status.SUBMITTED and self.complete and not self.checked
+
+
+#: the review list's statuses: a submission's, or ``none`` for a participant without one
+REVIEW_STATUSES = (*Submission.Status.values, "none")
+
+
+def _scope_key(p: Participant) -> tuple[object, ...]:
+    # review_rows's annotation: the devices are prefetched where there are any
+    devices = p.scope_devices.all() if getattr(p, "has_scope_devices", True) else ()
+    return (tuple(sorted(d.pk for d in devices)), tuple(sorted(p.scope_benches)),
+            tuple(sorted(p.scope_axes)), tuple(sorted(p.scope_frequencies_hz)))  # fmt: skip
+
+
+def review_rows(comparison: Comparison) -> list[ReviewRow]:
+    """Every participant of ``comparison`` by code with its latest version, completeness
+    and check requests: the review page, its filters, its next and previous links and
+    "accept all complete" read this one list.
+
+    A fixed number of queries whatever the size of the round: the participants, their
+    scopes' devices, one count of points per distinct scope (most participants share
+    one), and the in-scope results and check requests of each latest version."""
+    latest = Submission.objects.filter(participant=OuterRef("pk")).order_by("-version")
+    chosen = Participant.scope_devices.through.objects.filter(participant_id=OuterRef("pk"))
+    participants = list(
+        comparison.participants.select_related("laboratory").annotate(
+            latest_id=Subquery(latest.values("pk")[:1]),
+            latest_version=Subquery(latest.values("version")[:1]),
+            latest_status=Subquery(latest.values("status")[:1]),
+            has_scope_devices=Exists(chosen),
+        )
     )
-    return counts["total"], {p.pk: counts[f"p{p.pk}"] for p in participants}
+    scoped = [
+        p for p in participants
+        if p.has_scope_devices or p.scope_benches or p.scope_axes or p.scope_frequencies_hz
+    ]  # fmt: skip
+    # the scopes' devices, for the groups below and the scope's text (no query when none)
+    prefetch_related_objects(scoped, "scope_devices")
+    # in Python's order of the codes, which the next and previous links compare with
+    participants.sort(key=lambda p: p.code)
+    if not participants:
+        return []
+    groups: dict[tuple[object, ...], list[Participant]] = {}
+    for p in participants:
+        groups.setdefault(_scope_key(p), []).append(p)
+    scopes = list(groups.values())  # each group's first participant stands for its scope
+    n_points = MeasurementPoint.objects.filter(comparison=comparison).aggregate(
+        **{f"s{i}": Count("pk", filter=scope_filter(g[0])) for i, g in enumerate(scopes)}
+    )
+    latest_of = {id(p): p.latest_id for p in participants}
+    in_scope: Q | None = None
+    for g in scopes:
+        ids = [latest_of[id(p)] for p in g if latest_of[id(p)] is not None]
+        if ids:
+            points = MeasurementPoint.objects.filter(comparison=comparison)
+            inside = Q(submission_id__in=ids) & Q(
+                measurement_point__in=points.filter(scope_filter(g[0])).values("pk")
+            )
+            in_scope = inside if in_scope is None else in_scope | inside
+    n_results: dict[int, int] = {}
+    checked: set[int] = set()
+    if in_scope is not None:
+        # a check request is a notice keyed "check:<result id>" (labs.notices.notify_check);
+        # its version stays asked until the laboratory sends a new one
+        asked = Notice.objects.filter(comparison=comparison, kind=Notice.Kind.CHECK).annotate(
+            result_id=Cast(Substr("dedupe_key", len("check:") + 1), BigIntegerField())
+        )
+        counted = (
+            Result.objects.filter(submission_id__in=[pk for pk in latest_of.values() if pk])
+            .values("submission_id")
+            .annotate(
+                n=Count("pk", filter=in_scope),
+                asked=Count("pk", filter=Q(pk__in=asked.values("result_id"))),
+            )
+        )
+        for row in counted:
+            n_results[row["submission_id"]] = row["n"]
+            if row["asked"]:
+                checked.add(row["submission_id"])
+    size = {id(p): n_points[f"s{i}"] for i, g in enumerate(scopes) for p in g}
+    return [
+        ReviewRow(
+            participant=p,
+            submission_id=p.latest_id,
+            version=p.latest_version,
+            status=p.latest_status or "none",
+            n_results=n_results.get(p.latest_id, 0),
+            n_points=size[id(p)],
+            checked=p.latest_id in checked,
+            scoped=any(_scope_key(p)),
+        )
+        for p in participants
+    ]
+
+
+def acceptable_submissions(comparison: Comparison) -> list[ReviewRow]:
+    """The rows "accept all complete" accepts now (:attr:`ReviewRow.acceptable`), by code."""
+    return [row for row in review_rows(comparison) if row.acceptable]
 
 
 def scope_text(participant: Participant | Enrolment) -> str:

@@ -16,6 +16,7 @@ from common.rendering import ValuesRendering
 from labs.models import Result, Submission
 from labs.services import Scope
 from proficiency.models import Comparison, ComparisonStatus, Device, MeasurementPoint
+from proficiency.serializers import ReminderDaysField
 from proficiency.services import DEVICE_FIELDS
 
 # ---------------------------------------------------------------- errors
@@ -115,6 +116,7 @@ class ComparisonDetailSerializer(serializers.ModelSerializer):
     n_measurement_points = serializers.SerializerMethodField()
     participant_code = serializers.SerializerMethodField()
     roles = serializers.SerializerMethodField()
+    reminder_days = ReminderDaysField(read_only=True)
 
     class Meta:
         model = Comparison
@@ -126,6 +128,7 @@ class ComparisonDetailSerializer(serializers.ModelSerializer):
             "status",
             "submission_deadline",
             "en_limit",
+            "reminder_days",
             "devices",
             "n_measurement_points",
             "participant_code",

@@ -8,7 +8,8 @@ from django.contrib.auth import get_user_model
 from django.urls import reverse
 
 from analysis.models import AssignedValue, Score
-from labs.models import Result, Submission
+from labs.models import RawRecomputation, RawRecord, Result, Submission
+from proficiency.models import Device
 
 CODE = "IMU-2024-DEMO"
 C = f"/coordinator/{CODE}/"
@@ -109,3 +110,76 @@ def test_results_page_writes_assigned_values_by_their_u(client, run):
     ) == ["419.47", "0.067", "0.13"]
     unit = a.measurement_point.device.unit
     assert f"x_pt{heading(unit)}</th>" in page and f"U(x_pt){heading(unit)}</th>" in page
+
+
+# --- raw data and the comparison pages ------------------------------------------------------
+
+NOISY = 3.4160160000000004  # 3.416016 after one float operation too many
+
+
+def plant_raw(demo) -> tuple[RawRecord, Device]:
+    """Noise in every number of the demo's raw records' recomputations, and in a device's
+    nominal sensitivity and tolerance."""
+    records = RawRecomputation.objects.filter(record__participant__comparison=demo)
+    assert records.exists()
+    records.update(
+        status="succeeded", sensitivity=NOISY, expanded_uncertainty=0.012300000000000002,
+        coverage_factor=2.0000000000000004, reported_value=NOISY + 0.002,
+        reported_expanded_uncertainty=0.0123, reported_coverage_factor=2.0, en=0.12345678901234,
+        fs_hz=1663.7012345678901, u_fs_hz=0.012345600000000001,
+        budget=[{"name": "repeatability", "value": NOISY, "standard_uncertainty": 0.0123,
+                 "contribution": 0.004560000000000001}],
+    )  # fmt: skip
+    device = demo.devices.order_by("name").first()
+    assert device is not None
+    device.nominal_sensitivity, device.tolerance = NOISY, 0.30000000000000004
+    device.save()
+    return records.get(record__data_name="demo-linear.bin").record, device
+
+
+def no_noise(page: str) -> None:
+    for noisy in ("3.4160160000000004", "3.418016", "0.012300000000000002", "2.0000000000000004",
+                  "1663.7012345678901", "0.012345600000000001", "0.30000000000000004",
+                  "0.004560000000000001", "0.12345678901234"):  # fmt: skip
+        assert noisy not in page, noisy
+
+
+def test_raw_data_pages_round_by_the_uncertainty(client, demo):
+    record, _ = plant_raw(demo)
+    client.force_login(record.participant.laboratory.members.order_by("pk")[0].user)
+    listing = client.get(reverse("labs:raw_data", args=[CODE]))
+    assert listing.status_code == 200
+    page = listing.content.decode()
+    no_noise(page)
+    row = cells(page)
+    # reported 3.418016 ± 0.0123 and recomputed 3.416016 ± 0.0123: to 0.001; En as 0.123
+    assert {"3.418", "3.416", "0.123"} <= set(row), row
+    detail = client.get(reverse("labs:raw_record", args=[CODE, record.pk]))
+    assert detail.status_code == 200
+    page = detail.content.decode()
+    no_noise(page)
+    assert {"3.418", "0.012 (2)", "3.416", "0.0046"} <= set(cells(page))
+    assert 'data-testid="recomputed">3.416<' in page
+    assert 'data-testid="en">0.123' in page
+    assert 'data-testid="fs">1663.701 Hz (u = 0.012 Hz' in page
+    login(client, "coordinator")
+    review = client.get(f"{C}raw-data/")
+    assert review.status_code == 200
+    page = review.content.decode()
+    no_noise(page)
+    assert {"3.418", "0.012 (2)", "3.416", "0.0046"} <= set(cells(page))
+
+
+def test_comparison_pages_write_nominal_values_without_noise(client, demo):
+    _, device = plant_raw(demo)
+    login(client, "coordinator")
+    page = client.get(C).content.decode()
+    no_noise(page)
+    assert f"3.416016 {device.unit}" in cells(page)
+    assert any(c.startswith("± 0.3 ") for c in cells(page))
+    participant = demo.participants.get(laboratory__name__startswith="Alpine")
+    client.force_login(participant.laboratory.members.first().user)
+    lab_page = client.get(reverse("labs:comparison", args=[CODE])).content.decode()
+    no_noise(lab_page)
+    assert f"3.416016 {device.unit}" in cells(lab_page)
+    assert any(c.startswith("± 0.3 ") for c in cells(lab_page))

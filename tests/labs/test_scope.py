@@ -532,6 +532,7 @@ def test_coordinator_pages_show_the_scopes(client, world):
     assert f'<a href="{scope_url}">Device MEMS 2; bench curvilinear<span' in body
     review = visible(client.get(reverse("coordinator:review", args=[CODE])))
     assert '0 / 4 <span class="small text-body-secondary">(scope: bench linear)</span>' in review
+    LaboratoryFactory.create(name="Lab not yet invited")  # one checkbox to offer
     invite = visible(client.get(reverse("coordinator:invite", args=[CODE])))
     for name in ("laboratories", "devices", "benches", "axes", "frequencies_hz"):
         assert f'name="{name}"' in invite

@@ -219,6 +219,12 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    # accept every complete submission: POST only, the round's coordinators (then back to the
+    # review list); its confirmation page is confirm/<action>/
+    "coordinator/<slug:code>/review/accept-complete/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 302 404 302 302 302",
+    ),
     "coordinator/<slug:code>/review/<str:participant>/v<int:version>/": Row(
         get="302 404 404 404 200 404 302 302 200",
         post="302 404 404 404 200 404 302 302 200",
@@ -444,6 +450,11 @@ TABLE: dict[str, Row] = {
     "api/v1/comparisons/<slug:code>/submissions/<str:participant>/<int:version>/decision/": Row(
         get="401 405 405 405 405 405 405 401 405",
         post="401 403 403 403 400 404 403 401 400",
+    ),
+    # nothing waiting in the world: 200 with an empty list
+    "api/v1/comparisons/<slug:code>/submissions/accept-complete/": Row(
+        get="401 405 405 405 405 405 405 401 405",
+        post="401 403 403 403 200 404 403 401 200",
     ),
     "api/v1/comparisons/<slug:code>/check-requests/": Row(
         get="401 405 405 405 405 405 405 401 405",
