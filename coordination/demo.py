@@ -206,18 +206,21 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
 
 
 def _call(coordinator: Any, laboratory: Laboratory, manager: Any) -> Comparison:
-    """The round in preparation with its call open, and ``laboratory``'s pending application
-    for the linear bench (made once; no e-mail, as the demo's invitations)."""
+    """The two-bench round in preparation with its call open, and ``laboratory``'s pending
+    application for the linear bench (made once; no e-mail, as the demo's invitations)."""
     now = timezone.now()
     call, _ = Comparison.objects.get_or_create(
         code=CALL_CODE,
         defaults={
-            "title": "MEMS accelerometer sensitivity on the linear bench (demo, open call)",
+            "title": "MEMS accelerometer sensitivity on two benches (demo, open call)",
             "description": (
-                "A round in preparation: two LSM6DSR accelerometers on the linear bench (tilt "
-                "plate on a vertical exciter, 5/10/20 Hz). Laboratories apply from Open calls."
+                "A round in preparation: one LSM6DSR accelerometer measured on the linear bench "
+                "(tilt plate on a vertical exciter, 5/10/20 Hz) and on the curvilinear bench "
+                "(oscillating rotating table, 5/8/10 Hz, tangential and radial); a laboratory "
+                "may run either bench or both. Laboratories apply from Open calls with the "
+                "benches they run."
             ),
-            "protocol": protocols.LINEAR,
+            "protocol": "linear_and_curvilinear",
             "status": ComparisonStatus.DRAFT,
             "submission_deadline": now + CALL_DEADLINE,
             "enrolment_open": True,
@@ -226,13 +229,15 @@ def _call(coordinator: Any, laboratory: Laboratory, manager: Any) -> Comparison:
         },
     )
     call.coordinators.add(coordinator)
-    devices = _devices(call, (1, 2), serial="LSM6DSR-CALL")
+    devices = _devices(call, (1,), serial="LSM6DSR-CALL")
     if not call.measurement_points.exists():
-        comparison_apply_template(comparison=call, template_key=protocols.LINEAR, devices=devices)
+        comparison_apply_template(
+            comparison=call, template_key="linear_and_curvilinear", devices=devices
+        )
     if not Enrolment.objects.filter(comparison=call, laboratory=laboratory).exists():
         enrolment_apply(
-            comparison=call, laboratory=laboratory, scope=Scope(devices=devices[:1]),
-            note="We calibrate on a linear bench up to 20 Hz; MEMS 1 only this time.",
+            comparison=call, laboratory=laboratory, scope=Scope(benches=[protocols.LINEAR]),
+            note="We calibrate on a linear bench up to 20 Hz; no rotating table.",
             user=manager, notify=False,
         )  # fmt: skip
     return call

@@ -40,7 +40,7 @@ def test_admin_shows_the_demo(client):
     devices = client.get(reverse("admin:proficiency_device_changelist")).content.decode()
     assert all(f"MEMS {i}" in devices for i in (1, 2, 3))
     points = client.get(reverse("admin:proficiency_measurementpoint_changelist")).content.decode()
-    assert "99 measurement points" in points  # 81 of IMU-2024-DEMO, 18 of the open call
+    assert "108 measurement points" in points  # 81 of IMU-2024-DEMO, 27 of the open call
     results = client.get(reverse("admin:labs_result_changelist")).content.decode()
     assert "891 results" in results
     participants = client.get(reverse("admin:labs_participant_changelist")).content.decode()

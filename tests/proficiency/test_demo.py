@@ -41,10 +41,11 @@ def test_load_demo_twice_gives_the_same_rows():
     call_command("load_demo", password="demo-password-1", stdout=out)
     first = counts()
     assert first == {
-        # the demo round, and IMU-2025-CALL with its call open (2 devices, 18 linear points)
+        # the demo round, and IMU-2025-CALL with its call open (1 device on both benches:
+        # 9 linear and 18 curvilinear points)
         "Comparison": 2,
-        "Device": 3 + 2,
-        "MeasurementPoint": 81 + 18,
+        "Device": 3 + 1,
+        "MeasurementPoint": 81 + 27,
         "Laboratory": 12,
         "Membership": 13,
         "Participant": 12,
@@ -92,10 +93,10 @@ def test_demo_has_an_open_call_with_one_pending_application():
     assert application.status == Enrolment.Status.PENDING
     assert application.applied_by is not None
     assert application.applied_by.username == "lab03-manager"
-    assert scope_text(application) == "device MEMS 1"
+    assert scope_text(application) == "bench linear"
     assert not call.participants.exists()
     assert not Notice.objects.filter(comparison=call).exists()  # the demo e-mails nobody
-    assert f"Open call {CALL_CODE}: 18 measurement points, 1 pending application" in (
+    assert f"Open call {CALL_CODE}: 27 measurement points, 1 pending application" in (
         out.getvalue()
     )
 
