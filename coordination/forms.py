@@ -207,13 +207,7 @@ class ScopeForm(BootstrapMixin, forms.Form):
         return _optional_floats(self.cleaned_data.get("frequencies_hz", ""))
 
     def scope(self) -> Scope:
-        data = self.cleaned_data
-        return Scope(
-            devices=list(data["devices"]),
-            benches=data["benches"],
-            axes=data["axes"],
-            frequencies_hz=data["frequencies_hz"],
-        )
+        return Scope.of(self.cleaned_data)
 
 
 class InviteForm(ScopeForm):

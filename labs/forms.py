@@ -271,10 +271,4 @@ class ApplicationForm(forms.Form):
                 each.widget.attrs.setdefault("class", "form-control")
 
     def scope(self) -> Scope:
-        data = self.cleaned_data
-        return Scope(
-            devices=list(data["devices"]),
-            benches=data["benches"],
-            axes=data["axes"],
-            frequencies_hz=data["frequencies_hz"],
-        )
+        return Scope.of(self.cleaned_data)

@@ -6,7 +6,7 @@ import datetime as dt
 import hashlib
 import math
 import secrets
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -86,6 +86,15 @@ class Scope:
     benches: Sequence[str] = ()
     axes: Sequence[str] = ()
     frequencies_hz: Sequence[float] = ()
+
+    @classmethod
+    def of(cls, data: Mapping[str, Any]) -> Scope:
+        """The scope of a form's cleaned data (the invitation's, the scope page's and the
+        application's forms have these four fields)."""
+        return cls(
+            devices=list(data["devices"]), benches=data["benches"], axes=data["axes"],
+            frequencies_hz=data["frequencies_hz"],
+        )  # fmt: skip
 
 
 @dataclass(frozen=True)
