@@ -112,7 +112,12 @@ ROOT_URLCONF = "config.urls"
 TEMPLATES = [
     {
         "BACKEND": "django.template.backends.django.DjangoTemplates",
-        "DIRS": [BASE_DIR / "templates"],
+        # A provider's own copies (e.g. notices/invitation.txt, notices/email.html) in
+        # PROVIDER_TEMPLATES_DIR are found before the shipped ones (docs/lifecycles.md §6).
+        "DIRS": [
+            *([Path(p)] if (p := env.str("PROVIDER_TEMPLATES_DIR", default="")) else []),
+            BASE_DIR / "templates",
+        ],
         "APP_DIRS": True,
         "OPTIONS": {
             "context_processors": [

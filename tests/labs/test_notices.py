@@ -363,3 +363,32 @@ def test_coordinator_sees_what_was_sent_to_whom(client, world, inbox):
     # a laboratory's member is no coordinator: 404
     client.force_login(world["a1"])
     assert client.get("/coordinator/IMU-N1/").status_code == 404
+
+
+def test_a_provider_edits_the_notices_in_its_own_templates_folder(tmp_path):
+    """PROVIDER_TEMPLATES_DIR holds the provider's copies of templates/notices/: they are
+    found before the shipped ones, the others stay as shipped (settings read at start-up,
+    hence a process of its own)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    edited = tmp_path / "notices"
+    edited.mkdir()
+    (edited / "invitation_subject.txt").write_text("Einladung: {{ comparison.code }}\n")
+    show = (
+        "from django.template.loader import render_to_string as r; "
+        "print(r('notices/invitation_subject.txt', {'comparison': {'code': 'IMU-N1'}}).strip()); "
+        "print(r('notices/receipt_subject.txt', {'comparison': {'code': 'IMU-N1'}}).strip())"
+    )
+    root = Path(__file__).resolve().parents[2]
+    for folder, first in ((str(tmp_path), "Einladung: IMU-N1"), ("", None)):
+        env = os.environ | {"PROVIDER_TEMPLATES_DIR": folder}
+        result = subprocess.run(
+            [sys.executable, "manage.py", "shell", "-c", show],
+            cwd=root, env=env, capture_output=True, text=True, check=True,
+        )  # fmt: skip
+        invitation, receipt = result.stdout.strip().splitlines()[-2:]
+        assert (invitation == first) if first else ("Einladung" not in invitation)
+        assert "IMU-N1" in receipt and "Einladung" not in receipt
