@@ -1,6 +1,7 @@
 """What a coordinator's action will do, said before it is done: the confirmation pages of
-open, close, run and publish (docs/lifecycles.md, the comparison's life cycle) and of
-accepting every complete submission at once (docs/lifecycles.md §2).
+open, close, run and publish (docs/lifecycles.md, the comparison's life cycle), of
+accepting every complete submission at once (docs/lifecycles.md §2) and of reissuing a
+report (docs/lifecycles.md §4).
 
 Each action's page states its consequences with the round's own numbers (how many
 laboratories are e-mailed, how many submissions are analysed, what cannot be undone) and
@@ -16,6 +17,7 @@ from django.urls import reverse
 from analysis.models import Report
 from analysis.publication import publish_refusal
 from analysis.selectors import current_run
+from common.errors import NotVisible
 from common.sizes import counted
 from labs.models import Submission
 from labs.notices import laboratories_with_addressees
@@ -24,7 +26,7 @@ from proficiency.models import Comparison, ComparisonStatus
 from proficiency.services import comparison_allowed_transitions
 
 S = ComparisonStatus
-ACTIONS = ("open", "close", "run", "publish", "accept-complete")
+ACTIONS = ("open", "close", "run", "publish", "accept-complete", "reissue")
 
 
 @dataclass(frozen=True)
@@ -41,8 +43,11 @@ class Confirmation:
     back: str = ""  # where Cancel leads (the comparison's page when empty)
 
 
-def confirmation(comparison: Comparison, action: str) -> Confirmation:
-    """The page of ``action`` (one of :data:`ACTIONS`) for ``comparison``."""
+def confirmation(comparison: Comparison, action: str, report: str = "") -> Confirmation:
+    """The page of ``action`` (one of :data:`ACTIONS`) for ``comparison``; ``report``, for
+    a reissue: ``summary`` or a participant's code."""
+    if action == "reissue":
+        return _reissue(comparison, report or "summary")
     return {
         "open": _open,
         "close": _close,
@@ -209,3 +214,42 @@ def _accept_complete(c: Comparison) -> Confirmation:
             f"No submission of {c.code} is complete and waiting for a decision: nothing to accept."
         ),
     )
+
+
+def _reissue(c: Comparison, which: str) -> Confirmation:
+    """A new version of one report from the current run (the summary, or ``which``'s)."""
+    participant = None if which == "summary" else c.participants.filter(code=which).first()
+    if which != "summary" and participant is None:
+        raise NotVisible(f"No participant {which!r} in {c.code}.")
+    name = "the summary report" if participant is None else f"participant report {which}"
+    kind = Report.Kind.SUMMARY if participant is None else Report.Kind.PARTICIPANT
+    previous = Report.objects.filter(comparison=c, kind=kind, participant=participant)
+    last = previous.order_by("-version").first()
+    run = current_run(c)
+    status = "final" if c.status == S.PUBLISHED else "preliminary"
+    refused = ""
+    if run is None:
+        refused = f"{c.code} has no successful analysis run to issue a report from."
+    elif c.status not in (S.ANALYSED, S.PUBLISHED):
+        refused = f"{c.code} is {c.get_status_display().lower()}: reports are issued once analysed."
+    version = (last.version if last else 0) + 1
+    return Confirmation(
+        title=f"Reissue {name} of {c.code}",
+        button=f"Issue version {version}",
+        action=reverse("reports_reissue", args=[c.code]),
+        fields={"report": which},
+        back=reverse("reports", args=[c.code]),
+        consequences=[
+            f"Version {version} of {name} is rendered now from analysis run "
+            f"{run.pk if run else '—'}, with the current comments and authorisation, "
+            f"as a {status} report.",
+            (f"Version {last.version} stays downloadable, marked superseded."
+             if last else "It is the first version of this report."),
+            ("The participant sees the new version on its reports page; nobody is e-mailed."
+             if participant is not None and status == "final" else
+             "The participants see it once the results are published; nobody is e-mailed."
+             if status != "final" else
+             "Every participant sees the new summary on its reports page; nobody is e-mailed."),
+        ],
+        refused=refused,
+    )  # fmt: skip

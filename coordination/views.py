@@ -30,7 +30,7 @@ from django.urls import reverse
 from django.views.decorators.http import require_GET, require_http_methods, require_POST
 
 from analysis.reports.services import report_notes_update
-from common.errors import ApplicationError, refusal
+from common.errors import ApplicationError, NotVisible, refusal
 from common.pagination import CountSparingPaginator
 from common.points import format_number
 from common.sizes import counted
@@ -202,8 +202,11 @@ def confirm(request: AuthenticatedHttpRequest, code: str, action: str) -> HttpRe
     comparison = coordinated(request, code)
     if action not in ACTIONS:
         raise Http404(f"No action {action!r}.")
-    context = {"comparison": comparison, "c": confirmation(comparison, action)}
-    return render(request, "coordinator/confirm.html", context)
+    try:
+        c = confirmation(comparison, action, request.GET.get("report", ""))
+    except NotVisible as exc:
+        raise Http404(str(exc)) from None
+    return render(request, "coordinator/confirm.html", {"comparison": comparison, "c": c})
 
 
 @login_required

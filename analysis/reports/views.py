@@ -5,17 +5,20 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.core.paginator import Paginator
 from django.http import Http404, HttpResponse
-from django.shortcuts import get_object_or_404, render
+from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import path
-from django.views.decorators.http import require_GET
+from django.views.decorators.http import require_GET, require_POST
 
 from analysis.access import reports_visible
+from analysis.models import Report
 from analysis.reports.preview import report_preview
+from analysis.reports.services import report_issue
 from analysis.selectors import current_run
-from common.errors import NotVisible
+from common.errors import ApplicationError, NotVisible
 from labs.access import Caller, comparison_access, coordinated
 
 if TYPE_CHECKING:
@@ -75,7 +78,30 @@ def preview_pdf(request: AuthenticatedHttpRequest, code: str, which: str) -> Htt
     return response
 
 
+@login_required
+@require_POST
+def reissue(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
+    """A new version of one report now (``report``: ``summary`` or a participant's code),
+    after the confirmation page ``/coordinator/<code>/confirm/reissue/?report=...``; the
+    API's "issue now" (docs/lifecycles.md §4)."""
+    comparison = coordinated(request, code)
+    which = request.POST.get("report", "summary")
+    participant = (
+        None if which == "summary" else get_object_or_404(comparison.participants, code=which)
+    )
+    kind = Report.Kind.SUMMARY if participant is None else Report.Kind.PARTICIPANT
+    try:
+        report = report_issue(comparison=comparison, kind=kind, participant=participant)
+    except ApplicationError as exc:
+        messages.error(request, exc.message)
+    else:
+        name = "Summary report" if participant is None else f"Participant report {which}"
+        messages.success(request, f"{name} issued as version {report.version}.")
+    return redirect("reports", code)
+
+
 urlpatterns = [
+    path("coordinator/<slug:code>/reports/reissue/", reissue, name="reports_reissue"),
     path("reports/<slug:code>/", reports_page, name="reports"),
     path("coordinator/<slug:code>/reports/preview/", preview_page, name="reports_preview"),
     path(

@@ -108,3 +108,48 @@ def test_a_preview_needs_a_run(client, demo):
     signed_in(client, "coordinator")
     assert client.get(C + "reports/preview/summary.pdf").status_code == 409
     assert "no successful analysis run yet" in client.get(C + "reports/preview/").content.decode()
+
+
+def test_a_reissue_says_what_it_does_then_issues_one_new_version(client, run):
+    """From the reports page: Reissue… → the confirmation (which version, from which run,
+    the old one kept, nobody e-mailed) → POST → one new version, the old one superseded."""
+    from analysis.reports.services import report_issue
+
+    code = run.comparison.participants.order_by("code").first().code
+    participant = run.comparison.participants.get(code=code)
+    first = report_issue(comparison=run.comparison, kind="participant", participant=participant)
+    signed_in(client, "coordinator")
+    listing = client.get(f"/reports/{CODE}/").content.decode()
+    assert f'href="{C}confirm/reissue/?report={code}"' in listing
+    page = " ".join(client.get(f"{C}confirm/reissue/?report={code}").content.decode().split())
+    assert f"Reissue participant report {code} of {CODE}" in page
+    assert (
+        f"Version 2 of participant report {code} is rendered now from analysis run {run.pk}" in page
+    )
+    assert "as a preliminary report." in page
+    assert "Version 1 stays downloadable, marked superseded." in page
+    assert f'action="{C}reports/reissue/"' in page and f'value="{code}"' in page
+    assert Report.objects.count() == 1  # the page changes nothing
+    assert client.get(f"{C}confirm/reissue/?report=NOBODY").status_code == 404
+
+    response = client.post(f"{C}reports/reissue/", {"report": code})
+    assert response.status_code == 302 and response["Location"] == f"/reports/{CODE}/"
+    versions = Report.objects.filter(participant=participant).order_by("version")
+    assert [(r.version, r.superseded) for r in versions] == [(1, True), (2, False)]
+    assert versions[0].pk == first.pk
+    shown = client.get(f"/reports/{CODE}/").content.decode()
+    assert f"Participant report {code} issued as version 2." in shown
+    assert mail.outbox == []
+    # the summary too, as its first version
+    assert client.post(f"{C}reports/reissue/", {"report": "summary"}).status_code == 302
+    assert Report.objects.filter(kind="summary").get().version == 1
+
+
+def test_a_reissue_is_the_coordinators_only(client, run):
+    other = UserFactory.create()
+    ComparisonFactory.create().coordinators.add(other)
+    for who in (other, get_user_model().objects.get(username="lab03")):
+        client.force_login(who)
+        assert client.get(C + "confirm/reissue/?report=summary").status_code == 404
+        assert client.post(C + "reports/reissue/", {"report": "summary"}).status_code == 404
+    assert Report.objects.count() == 0

@@ -250,6 +250,12 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    # a new version of one report: POST only, the round's coordinators (then the reports page,
+    # with the service's refusal as a message when the world's round has no run)
+    "coordinator/<slug:code>/reports/reissue/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 302 404 302 302 302",
+    ),
     "coordinator/<slug:code>/analysis/runs/": Row(
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
