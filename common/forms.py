@@ -23,3 +23,11 @@ class BootstrapMixin:
             else:
                 css = "form-control"
             widget.attrs.setdefault("class", css)
+
+
+class ByName(forms.ModelMultipleChoiceField):
+    """Choices labelled by the rows' ``name`` alone (a device within its own round, not
+    its ``str()``, which names the round too)."""
+
+    def label_from_instance(self, obj: Any) -> str:
+        return str(obj.name)

@@ -7,7 +7,7 @@ from typing import Any, cast
 
 from django import forms
 
-from common.forms import BootstrapMixin
+from common.forms import BootstrapMixin, ByName
 from common.points import format_number
 from labs.models import Laboratory, Participant
 from labs.selectors import REVIEW_STATUSES
@@ -23,6 +23,7 @@ from proficiency.models import (
     Direction,
     MeasurementPoint,
 )
+from proficiency.selectors import call_levels
 from proficiency.services import DEVICE_FIELDS
 
 TEMPLATE_CHOICES = [("", "From scratch (add devices and points yourself)")] + [
@@ -171,7 +172,7 @@ class ScopeForm(BootstrapMixin, forms.Form):
     """What a participant measures (docs/domain.md §10); nothing chosen in a field allows
     every value of it. ``labs.services`` checks the scope against the comparison."""
 
-    devices = forms.ModelMultipleChoiceField(
+    devices = ByName(
         queryset=Device.objects.none(), required=False, widget=forms.CheckboxSelectMultiple,
         help_text="None chosen: every device.",
     )  # fmt: skip
@@ -202,6 +203,18 @@ class ScopeForm(BootstrapMixin, forms.Form):
         super().__init__(*args, **kwargs)
         field = cast(forms.ModelMultipleChoiceField, self.fields["devices"])
         field.queryset = comparison.devices.order_by("name")
+        # only the benches and axes the round's points have (all while it has none yet),
+        # and any the participant's scope still names
+        levels = call_levels([comparison])[comparison.pk]
+        for name, have, choices in (
+            ("benches", levels.benches, Bench.choices),
+            ("axes", levels.axes, Axis.choices),
+        ):
+            kept = set(have) | set(self.initial.get(name) or ())
+            if have:
+                cast(forms.ChoiceField, self.fields[name]).choices = [
+                    (value, label) for value, label in choices if value in kept
+                ]
 
     def clean_frequencies_hz(self) -> list[float]:
         return _optional_floats(self.cleaned_data.get("frequencies_hz", ""))

@@ -16,6 +16,7 @@ from django.conf import settings
 from django.core.files.uploadedfile import UploadedFile
 from django.db.models import QuerySet
 
+from common.forms import ByName
 from common.points import format_number
 from labs.importers.values import human_size
 from labs.models import LabAPIKey, Laboratory, Result
@@ -224,7 +225,7 @@ class ApplicationForm(forms.Form):
         queryset=Laboratory.objects.none(), widget=forms.RadioSelect, empty_label=None,
         label="Laboratory applying",
     )  # fmt: skip
-    devices = forms.ModelMultipleChoiceField(
+    devices = ByName(
         queryset=Device.objects.none(), required=False, widget=forms.CheckboxSelectMultiple,
         help_text="None ticked: every device.",
     )  # fmt: skip
@@ -253,9 +254,8 @@ class ApplicationForm(forms.Form):
         if len(laboratories) == 1:
             f["laboratory"].initial = laboratories[0]
             f["laboratory"].widget = forms.HiddenInput()
-        cast(forms.ModelMultipleChoiceField, f["devices"]).queryset = comparison.devices.order_by(
-            "name"
-        )
+        devices = cast(forms.ModelMultipleChoiceField, f["devices"])
+        devices.queryset = comparison.devices.order_by("name")
         bench_names = dict(Bench.choices)
         cast(forms.ChoiceField, f["benches"]).choices = [
             (b, bench_names.get(b, b)) for b in levels.benches

@@ -356,6 +356,24 @@ def test_invitation_page_sets_the_scope(client, world):
     assert labels(participant) == [("MEMS 1", "linear", 10)]
 
 
+def test_scope_forms_offer_the_rounds_own_benches_and_devices_by_name(client, world):
+    """The round has the linear and curvilinear benches and axis X only: the invitation and
+    scope pages offer those (not sine-on-random, not Y or Z), devices by their name."""
+    import re
+
+    LaboratoryFactory.create(name="Lab new")
+    client.force_login(world.coordinator)
+    for url in (
+        reverse("coordinator:invite", args=[CODE]),
+        reverse("coordinator:scope", args=[CODE, world.linear.code]),
+    ):
+        page = client.get(url).content.decode()
+        benches = re.findall(r'name="benches" value="([^"]+)"', page)
+        axes = re.findall(r'name="axes" value="([^"]+)"', page)
+        assert (sorted(benches), axes) == (["curvilinear", "linear"], ["X"]), url
+        assert "MEMS 1</label>" in page and "MEMS 1 (" not in page, url
+
+
 def test_invitation_api_takes_an_optional_scope(world):
     client = APIClient()
     client.force_authenticate(world.coordinator)
