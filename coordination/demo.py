@@ -187,6 +187,8 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
         scope = Scope(benches=[bench])
         participant = _lab(summary, comparison, name, country, username, password, scope)
         _submit(participant, reproduction_results(points, bench), Submission.Source.FILE)
+        if bench == "curvilinear":  # its software applies to the open call (below)
+            curvilinear_lab = participant.laboratory
     for i, (name, country) in enumerate(SYNTHETIC_LABS, start=3):
         participant = _lab(summary, comparison, name, country, f"lab{i:02d}", password)
         if i == MANAGED_LAB:  # its manager creates the API keys its software submits with
@@ -201,13 +203,17 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
         _submit(participant, rows, Submission.Source.API if i % 2 else Submission.Source.WEB)
         if name == RAW_DATA_LAB:
             _raw_records(participant)
-    summary.call = _call(coordinator, *applicant)
+    summary.call = _call(coordinator, *applicant, curvilinear_lab)
     return summary
 
 
-def _call(coordinator: Any, laboratory: Laboratory, manager: Any) -> Comparison:
-    """The two-bench round in preparation with its call open, and ``laboratory``'s pending
-    application for the linear bench (made once; no e-mail, as the demo's invitations)."""
+def _call(
+    coordinator: Any, laboratory: Laboratory, manager: Any, curvilinear_lab: Laboratory
+) -> Comparison:
+    """The two-bench round in preparation with its call open, ``laboratory``'s pending
+    application for the linear bench (by its manager) and ``curvilinear_lab``'s for the
+    curvilinear bench (by its software's API key); each made once, with no e-mail, as the
+    demo's invitations."""
     now = timezone.now()
     call, _ = Comparison.objects.get_or_create(
         code=CALL_CODE,
@@ -239,6 +245,12 @@ def _call(coordinator: Any, laboratory: Laboratory, manager: Any) -> Comparison:
             comparison=call, laboratory=laboratory, scope=Scope(benches=[protocols.LINEAR]),
             note="We calibrate on a linear bench up to 20 Hz; no rotating table.",
             user=manager, notify=False,
+        )  # fmt: skip
+    if not Enrolment.objects.filter(comparison=call, laboratory=curvilinear_lab).exists():
+        enrolment_apply(
+            comparison=call, laboratory=curvilinear_lab,
+            scope=Scope(benches=[protocols.CURVILINEAR]),
+            note="Oscillating rotating table only, tangential and radial.", notify=False,
         )  # fmt: skip
     return call
 

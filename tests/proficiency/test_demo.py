@@ -53,7 +53,7 @@ def test_load_demo_twice_gives_the_same_rows():
         # 2 bench labs (27 + 54 points) and 10 labs measuring all 81 points
         "Result": 27 + 54 + 10 * 81,
         "User": 15,
-        "Enrolment": 1,
+        "Enrolment": 2,
     }
     assert "coordinator" in out.getvalue() and "demo-password-1" in out.getvalue()
     out2 = StringIO()
@@ -81,22 +81,28 @@ def test_demo_accounts_and_roles():
     assert manager.laboratory == staff.laboratory
 
 
-def test_demo_has_an_open_call_with_one_pending_application():
+def test_demo_has_an_open_call_with_two_pending_applications():
     out = StringIO()
     call_command("load_demo", password="demo-password-1", stdout=out)
     assert [c.code for c in open_calls()] == [CALL_CODE]
     call = Comparison.objects.get(code=CALL_CODE)
     assert call.status == "draft"
     assert call.coordinators.filter(username="coordinator").exists()
-    application = Enrolment.objects.get()
+    application = Enrolment.objects.get(laboratory__members__user__username="lab03")
     assert application.comparison == call
     assert application.status == Enrolment.Status.PENDING
     assert application.applied_by is not None
     assert application.applied_by.username == "lab03-manager"
     assert scope_text(application) == "bench linear"
+    by_key = Enrolment.objects.get(laboratory__members__user__username="curvilinear-lab")
+    assert (by_key.status, by_key.applied_by, scope_text(by_key)) == (
+        Enrolment.Status.PENDING,
+        None,
+        "bench curvilinear",
+    )
     assert not call.participants.exists()
     assert not Notice.objects.filter(comparison=call).exists()  # the demo e-mails nobody
-    assert f"Open call {CALL_CODE}: 27 measurement points, 1 pending application" in (
+    assert f"Open call {CALL_CODE}: 27 measurement points, 2 pending applications" in (
         out.getvalue()
     )
 

@@ -31,7 +31,8 @@ class Command(BaseCommand):
             self.stdout.write(
                 f"Open call {call.code}: {call.measurement_points.count()} measurement points, "
                 f"{pending} pending application{'' if pending == 1 else 's'} (lab03-manager "
-                "applied; the coordinator accepts or declines it)."
+                "for the linear bench, the curvilinear laboratory's software for the "
+                "curvilinear one; the coordinator accepts or declines them)."
             )
         if summary.created_users:
             self.stdout.write("Demo logins (shown once; write them down):")
