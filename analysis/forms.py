@@ -6,6 +6,7 @@ from typing import Any, cast
 
 from django import forms
 
+from analysis.core.scores import FLAG_LABELS
 from common.forms import BootstrapMixin
 from common.points import POINT_FIELDS, format_number, point_label
 from proficiency.models import Axis, Bench, Comparison, Direction, MeasurementPoint
@@ -25,6 +26,10 @@ def point_choice_label(p: MeasurementPoint) -> str:
     return point_label(p.key, sep=" · ")
 
 
+#: the flags a score carries
+FLAGS = [(label, label) for label in FLAG_LABELS]
+
+
 class ScoreFilterForm(BootstrapMixin, forms.Form):
     """Score filters (GET); every value is checked against the comparison's own levels."""
 
@@ -34,6 +39,12 @@ class ScoreFilterForm(BootstrapMixin, forms.Form):
     bench = forms.ChoiceField(required=False, choices=ALL + list(Bench.choices))
     direction = forms.ChoiceField(required=False, choices=ALL + list(Direction.choices))
     lab = forms.ChoiceField(required=False, label="Participant")
+    flag = forms.ChoiceField(required=False, label="En flag", choices=ALL + FLAGS)
+    z_flag = forms.ChoiceField(required=False, label="z / z′ flag", choices=ALL + FLAGS)
+    order = forms.ChoiceField(
+        required=False, label="Sort by",
+        choices=[("", "Point"), ("en", "|En|, largest first"), ("z", "|z| or |z′|, largest first")],
+    )  # fmt: skip
 
     def __init__(self, data: Any, *, comparison: Comparison, lab_codes: list[str]) -> None:
         super().__init__(data)
@@ -61,7 +72,11 @@ class ScoreFilterForm(BootstrapMixin, forms.Form):
         """The valid filters as ``run_scores`` takes them (an invalid form filters nothing)."""
         if not self.is_valid():
             return {}
-        return {k: v for k, v in self.cleaned_data.items() if v}
+        return {k: v for k, v in self.cleaned_data.items() if v and k != "order"}
+
+    def ordering(self) -> str:
+        """The order chosen (``en``, ``z``), or "" for the points' order."""
+        return str(self.cleaned_data.get("order") or "") if self.is_valid() else ""
 
 
 class PointForm(BootstrapMixin, forms.Form):

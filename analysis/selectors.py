@@ -6,13 +6,25 @@ from dataclasses import dataclass
 from typing import Any, cast
 
 import numpy as np
-from django.db.models import Count, QuerySet, Value
-from django.db.models.functions import Coalesce
+from django.db.models import (
+    BooleanField,
+    Case,
+    Count,
+    F,
+    FloatField,
+    OuterRef,
+    QuerySet,
+    Subquery,
+    Value,
+    When,
+)
+from django.db.models.functions import Abs, Coalesce
 
 from analysis.bulk import read_columns
 from analysis.core.assigned import EXACT_MAX  # noqa: F401  (re-exported for the results page)
 from analysis.core.compatibility import compatibility_matrices
 from analysis.core.groups import Groups
+from analysis.core.scores import NEGLIGIBLE_FRACTION
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.pipeline import AssignedSpec, ResultTable
 from common.errors import ValidationFailed
@@ -227,23 +239,57 @@ SCORE_FILTERS = {
     "bench": "result__measurement_point__bench",
     "direction": "result__measurement_point__direction",
     "lab": "result__submission__participant__code",
+    "flag": "flag",
+    "z_flag": "z_flag",
 }
+POINT_ORDER_OF_SCORES = (
+    "result__measurement_point__device__name",
+    "result__measurement_point__bench",
+    "result__measurement_point__direction",
+    "result__measurement_point__axis",
+    "result__measurement_point__frequency_hz",
+    "result__submission__participant__code",
+)
+#: the orders the scores page offers besides the points' (largest first)
+SCORE_ORDERS = {"en": "abs_en", "z": "abs_z_used"}
 
 
-def run_scores(run: AnalysisRun, filters: dict[str, str]) -> QuerySet[Score]:
-    """Scores of one run with their result and point, filtered by point keys or lab code."""
-    qs = Score.objects.filter(run=run).select_related(
-        "result__measurement_point__device", "result__submission__participant"
+def run_scores(run: AnalysisRun, filters: dict[str, str], order: str = "") -> QuerySet[Score]:
+    """Scores of one run with their result and point, filtered by point keys, lab code or
+    flag, in the points' order or (``order``: ``en``, ``z``) by |En| or by |z| of the z
+    that counts, largest first.
+
+    Each score carries ``z_is_prime`` and ``z_used``: ISO 13528 uses z′ instead of z where
+    u(x_pt) > 0.3 σ_pt (9.5; docs/domain.md, the scores), the rule of
+    ``analysis.core.scores``, read here from the point's assigned value in the run."""
+    assigned = AssignedValue.objects.filter(
+        run=OuterRef("run"), measurement_point=OuterRef("result__measurement_point")
+    )
+    qs = (
+        Score.objects.filter(run=run)
+        .select_related("result__measurement_point__device", "result__submission__participant")
+        .annotate(
+            u_pt=Subquery(assigned.values("standard_uncertainty")[:1], output_field=FloatField()),
+            sigma=Subquery(assigned.values("sigma_pt")[:1], output_field=FloatField()),
+        )
+        .annotate(
+            z_is_prime=Case(
+                When(sigma__isnull=False, u_pt__gt=F("sigma") * NEGLIGIBLE_FRACTION, then=True),
+                default=Value(False),
+                output_field=BooleanField(),
+            ),
+        )
+        .annotate(
+            z_used=Case(When(z_is_prime=True, then=F("z_prime")), default=F("z")),
+        )
     )
     lookups = {SCORE_FILTERS[k]: v for k, v in filters.items() if k in SCORE_FILTERS and v}
-    return qs.filter(**lookups).order_by(
-        "result__measurement_point__device__name",
-        "result__measurement_point__bench",
-        "result__measurement_point__direction",
-        "result__measurement_point__axis",
-        "result__measurement_point__frequency_hz",
-        "result__submission__participant__code",
-    )
+    qs = qs.filter(**lookups)
+    if order in SCORE_ORDERS:
+        qs = qs.annotate(abs_en=Abs("en"), abs_z_used=Abs("z_used"))
+        key = F(SCORE_ORDERS[order]).desc(nulls_last=True)
+        return qs.order_by(key, *POINT_ORDER_OF_SCORES)
+    return qs.order_by(*POINT_ORDER_OF_SCORES)
 
 
 def approximate_subsets(run: AnalysisRun) -> int:

@@ -286,9 +286,10 @@ def scores(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpR
     if viewer.run is None:
         return _render(request, viewer, "scores", {})
     form = ScoreFilterForm(request.GET, comparison=viewer.comparison, lab_codes=_lab_codes(viewer))
-    page = _page(request, run_scores(viewer.run, form.filters()), 50)
+    page = _page(request, run_scores(viewer.run, form.filters(), form.ordering()), 50)
     own = viewer.own_code
     rows = [{"s": s, "flag_class": FLAG_CLASS.get(s.flag, ""),
+             "z_flag_class": FLAG_CLASS.get(s.z_flag, ""),
              "own": s.result.submission.participant.code == own} for s in page]  # fmt: skip
     query = request.GET.copy()
     query.pop("page", None)
