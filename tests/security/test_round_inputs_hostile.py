@@ -163,3 +163,75 @@ def test_hostile_reminder_days_are_refused_on_the_settings_form(round_, client):
         )  # fmt: skip
         assert page.status_code in (200, 400), (bad[:20], page.status_code)
         assert Comparison.objects.get(pk=comparison.pk).reminder_days in ("", "7,1"), bad[:20]
+
+
+# --- enrolment: an application's scope, note and the coordinator's reason ------------------
+
+
+@pytest.fixture
+def call(needs_postgres):
+    from tests.labs.test_enrolment import Call
+
+    return Call()
+
+
+APPLY = "/api/v1/comparisons/IMU-CALL/applications/"
+
+
+@pytest.mark.parametrize(
+    ("body", "field"),
+    [
+        ({"scope": {"benches": ["linear\x00"]}}, "benches"),
+        ({"scope": {"axes": ["\x1b[31mX"]}}, "axes"),
+        ({"scope": {"devices": ["MEMS\x001"]}}, "devices"),
+        ({"scope": {"frequencies_hz": [1e-300]}}, "frequencies_hz"),
+        ({"scope": {"frequencies_hz": [1e308]}}, "frequencies_hz"),
+        ({"note": "bench\x00note"}, "note"),
+    ],
+)
+def test_a_hostile_application_is_a_400_naming_it_and_stores_nothing(call, body, field):
+    from labs.models import Enrolment, Notice
+
+    response = call.key().post(APPLY, body, format="json")
+    assert response.status_code == 400, response.content
+    assert field in json.dumps(response.json()["errors"]), response.json()
+    assert not Enrolment.objects.exists()
+    assert not Notice.objects.exists()
+
+
+def test_a_million_wide_application_is_refused_in_bounded_time(call):
+    from labs.models import Enrolment
+
+    wide = [5.0 + i * 1e-3 for i in range(1_000_000)]
+    started = time.monotonic()
+    response = call.key().post(APPLY, {"scope": {"frequencies_hz": wide}}, format="json")
+    elapsed = time.monotonic() - started
+    assert response.status_code in (400, 413), response.status_code
+    assert elapsed < 30, f"{elapsed:.1f} s for one request"
+    assert len(response.content) < 1_000_000
+    assert not Enrolment.objects.exists()
+
+
+def test_a_decline_reason_with_a_nul_is_a_400_and_decides_nothing(call):
+    from labs.models import Enrolment, Notice
+
+    application = call.apply(notify=False)
+    client = api(call.coordinator)
+    response = client.post(f"{APPLY}{application.pk}/decline/", {"reason": "full\x00"},
+                           format="json")  # fmt: skip
+    assert response.status_code == 400, response.content
+    assert response.json()["errors"][0]["field"] == "reason"
+    assert Enrolment.objects.get().status == Enrolment.Status.PENDING
+    assert not Notice.objects.filter(kind=Notice.Kind.DECLINED).exists()
+
+
+def test_the_same_acceptance_twice_at_once_makes_one_participant(call):
+    from labs.models import Enrolment
+
+    application = call.apply(notify=False)
+    url = f"{APPLY}{application.pk}/accept/"
+    a, b = at_once(*(lambda: api(call.coordinator).post(url, {}, format="json") for _ in range(2)))
+    assert sorted(r.status_code for r in (a, b)) == [201, 409], (a.content, b.content)
+    (participant,) = Participant.objects.filter(comparison=call.comparison)
+    assert participant.laboratory == call.lab and participant.scope_benches == ["linear"]
+    assert Enrolment.objects.get().status == Enrolment.Status.ACCEPTED
