@@ -13,7 +13,7 @@ from common.errors import StateConflict, ValidationFailed
 from labs.models import Enrolment, Laboratory, Participant
 from labs.notices import notify_applied, notify_declined
 from labs.selectors import scope_text
-from labs.services import Scope, _CleanScope, _scope_clean, participants_invite
+from labs.services import Scope, _scope_clean, _scope_store, participants_invite
 from proficiency.models import Comparison, ComparisonStatus
 from proficiency.services import enrolment_check
 
@@ -71,14 +71,6 @@ def enrolment_apply_check(comparison: Comparison, laboratory: Laboratory | None)
     enrolment_check(comparison)
 
 
-def _scope_keep(enrolment: Enrolment, clean: _CleanScope) -> None:
-    enrolment.scope_benches = clean.benches
-    enrolment.scope_axes = clean.axes
-    enrolment.scope_frequencies_hz = clean.frequencies_hz
-    enrolment.save(update_fields=["scope_benches", "scope_axes", "scope_frequencies_hz"])
-    enrolment.scope_devices.set(clean.devices)
-
-
 @transaction.atomic
 def enrolment_apply(
     *,
@@ -105,7 +97,7 @@ def enrolment_apply(
     except IntegrityError:
         _already(laboratory, comparison)
         raise
-    _scope_keep(enrolment, clean)
+    _scope_store(enrolment, clean)
     if notify:
         notify_applied(enrolment, scope_text(enrolment))
     return enrolment

@@ -27,7 +27,15 @@ from labs.importers import (
     parse_rows,
     parse_table,
 )
-from labs.models import LabAPIKey, Laboratory, Participant, Result, Submission, SubmissionKey
+from labs.models import (
+    Enrolment,
+    LabAPIKey,
+    Laboratory,
+    Participant,
+    Result,
+    Submission,
+    SubmissionKey,
+)
 from labs.notices import notify_invited, notify_opened, notify_receipt
 from labs.selectors import ComparisonTable, comparison_table, scope_levels_filter
 from proficiency import services as proficiency_services
@@ -175,12 +183,13 @@ def _scope_clean(comparison: Comparison, scope: Scope) -> _CleanScope:
     return clean
 
 
-def _scope_store(participant: Participant, scope: _CleanScope) -> None:
-    participant.scope_benches = scope.benches
-    participant.scope_axes = scope.axes
-    participant.scope_frequencies_hz = scope.frequencies_hz
-    participant.save(update_fields=["scope_benches", "scope_axes", "scope_frequencies_hz"])
-    participant.scope_devices.set(scope.devices)
+def _scope_store(row: Participant | Enrolment, scope: _CleanScope) -> None:
+    """Store a checked scope on a participant, or on an application (same fields)."""
+    row.scope_benches = scope.benches
+    row.scope_axes = scope.axes
+    row.scope_frequencies_hz = scope.frequencies_hz
+    row.save(update_fields=["scope_benches", "scope_axes", "scope_frequencies_hz"])
+    row.scope_devices.set(scope.devices)
 
 
 def scope_change_check(comparison: Comparison) -> None:
