@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import cast
 
-from django.db.models import Count, QuerySet
+from django.db.models import Count, F, QuerySet
 
 from proficiency.models import Comparison, MeasurementPoint
 from proficiency.services import enrolment_open_filter
@@ -22,7 +22,12 @@ def open_calls(*, now: dt.datetime | None = None) -> QuerySet[Comparison]:
     return (
         Comparison.objects.filter(enrolment_open_filter(now=now))
         .prefetch_related("devices")
-        .order_by("enrolment_closes", "submission_deadline", "code")
+        # a call without an end last, on every database (SQLite puts NULL first)
+        .order_by(
+            F("enrolment_closes").asc(nulls_last=True),
+            F("submission_deadline").asc(nulls_last=True),
+            "code",
+        )
     )
 
 
