@@ -292,6 +292,14 @@ def run_scores(run: AnalysisRun, filters: dict[str, str], order: str = "") -> Qu
     return qs.order_by(*POINT_ORDER_OF_SCORES)
 
 
+def z_used_name(score: Score) -> str | None:
+    """``z`` or ``z_prime``: the score a ``run_scores`` row's ``z_flag`` is of (None: the
+    point has no σ_pt, so no z at all)."""
+    if score.z is None:
+        return None
+    return "z_prime" if getattr(score, "z_is_prime", False) else "z"
+
+
 def approximate_subsets(run: AnalysisRun) -> int:
     """Points of ``run`` whose largest consistent subset is the sequential approximation
     (too many results for the exact search: ``analysis.core.assigned.EXACT_MAX``)."""

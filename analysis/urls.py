@@ -19,6 +19,13 @@ urlpatterns = [
     path(C + "analysis/runs/<int:pk>/cancel/", views.run_cancel, name="run_cancel"),
     path(C + "publish/", views.publish, name="publish"),
     path(C + "publication/<int:pk>/", views.publication, name="publication"),
+    path(C + "performance/", views.performance_page, COORD, name="performance"),
+    path(
+        C + "performance/<slug:lab>/",
+        views.participant_performance,
+        COORD,
+        name="participant_performance",
+    ),
     path(
         C + "publication/<int:pk>/progress/",
         views.publication_progress,

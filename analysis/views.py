@@ -27,6 +27,7 @@ from django.views.decorators.http import require_GET, require_POST
 from analysis import charts
 from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
 from analysis.models import AnalysisRun, AssignedValue, Publication, Score
+from analysis.performance import lab_performance, performance
 from analysis.publication import active_publication, publication_start
 from analysis.selectors import (
     EXACT_MAX,
@@ -36,6 +37,7 @@ from analysis.selectors import (
     run_consistency,
     run_matrices,
     run_scores,
+    z_used_name,
 )
 from analysis.services import analysis_run_cancel, analysis_run_start
 from common.errors import ApplicationError
@@ -59,7 +61,7 @@ SCORE_COLUMNS = [
     "lab", "device", "axis", "frequency_hz", "bench", "direction", "sensitivity", "unit",
     "expanded_uncertainty", "coverage_factor", "assigned_value", "assigned_standard_uncertainty",
     "assigned_expanded_uncertainty", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag",
-    "z_flag", "in_assigned_value", "correlation_applied", "correlation_failed",
+    "z_flag", "in_assigned_value", "correlation_applied", "correlation_failed", "z_used",
 ]  # fmt: skip
 
 
@@ -87,6 +89,8 @@ class Viewer:
     def nav(self) -> list[tuple[str, str, str]]:
         pages = [("results", "Assigned values"), ("scores", "Scores"), ("charts", "Charts"),
                  ("compatibility", "Compatibility"), ("consistency", "Consistency")]  # fmt: skip
+        if self.is_coordinator:
+            pages.insert(1, ("performance", "Performance"))
         return [(page, label, self.url(page)) for page, label in pages]
 
 
@@ -271,8 +275,42 @@ def results(request: AuthenticatedHttpRequest, code: str, audience: str) -> Http
         "exact_max": EXACT_MAX,
         "may_publish": viewer.is_coordinator and c.status == ComparisonStatus.ANALYSED
         and viewer.run == current_run(c),
+        # a participant's landing page starts with how it did
+        "summary": lab_performance(viewer.run, viewer.own_code) if viewer.own_code else None,
+        "scores_url": viewer.url("scores"),
     }  # fmt: skip
     return _render(request, viewer, "results", context)
+
+
+@login_required
+@require_GET
+def performance_page(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpResponse:
+    """Coordinator: every participant's flag counts in the run, 50 laboratories a page."""
+    viewer = _viewer(request, code, audience)
+    if viewer.run is None:
+        return _render(request, viewer, "performance", {})
+    page = _page(request, _lab_codes(viewer), 50)
+    query = request.GET.copy()
+    query.pop("page", None)
+    context = {"page_obj": page, "rows": performance(viewer.run, page.object_list),
+               "query": query.urlencode()}  # fmt: skip
+    return _render(request, viewer, "performance", context)
+
+
+@login_required
+@require_GET
+def participant_performance(
+    request: AuthenticatedHttpRequest, code: str, lab: str, audience: str
+) -> HttpResponse:
+    """Coordinator: one participant's summary, as the participant sees it on its results."""
+    viewer = _viewer(request, code, audience)
+    if viewer.run is None:
+        return _render(request, viewer, "participant_performance", {})
+    if not viewer.comparison.participants.filter(code=lab).exists():
+        raise Http404(f"{code} has no participant {lab}.")
+    context = {"lab": lab, "summary": lab_performance(viewer.run, lab),
+               "scores_url": viewer.url("scores")}  # fmt: skip
+    return _render(request, viewer, "participant_performance", context)
 
 
 def _lab_codes(viewer: Viewer) -> list[str]:
@@ -315,7 +353,7 @@ def _score_records(run: AnalysisRun, filters: dict[str, str]) -> list[dict]:
             "d": s.d, "d_percent": s.d_percent, "en": s.en, "zeta": s.zeta, "z": s.z,
             "z_prime": s.z_prime, "flag": s.flag, "z_flag": s.z_flag,
             "in_assigned_value": s.in_assigned_value, "correlation_applied": s.correlation_applied,
-            "correlation_failed": s.correlation_failed,
+            "correlation_failed": s.correlation_failed, "z_used": z_used_name(s) or "",
         })  # fmt: skip
     return records
 

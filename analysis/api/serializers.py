@@ -7,6 +7,7 @@ from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
 from analysis.models import AnalysisRun, Publication, Score
+from analysis.selectors import z_used_name
 from labs.models import Submission
 from proficiency.models import AssignedValueMethod, Comparison, SigmaPtMode
 
@@ -55,13 +56,20 @@ class ScoreSerializer(serializers.ModelSerializer):
     direction = serializers.CharField(source="result.measurement_point.direction")
     value = serializers.FloatField(source="result.value")
     expanded_uncertainty = serializers.FloatField(source="result.expanded_uncertainty")
+    z_used = serializers.SerializerMethodField(
+        help_text="the z score that counts and that z_flag is of: z, z_prime (where u(x_pt) > "
+        "0.3 σ_pt, ISO 13528 9.5), or null without σ_pt"
+    )
+
+    def get_z_used(self, score: Score) -> str | None:
+        return z_used_name(score)
 
     class Meta:
         model = Score
         fields = [
             "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
             "expanded_uncertainty", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag",
-            "z_flag", "correlation_applied", "correlation_failed", "in_assigned_value",
+            "z_flag", "correlation_applied", "correlation_failed", "in_assigned_value", "z_used",
         ]  # fmt: skip
 
 

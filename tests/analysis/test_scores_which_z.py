@@ -56,3 +56,31 @@ def test_filters_by_flag_and_sorts_by_abs_en(client, run):
     assert zs and zs == sorted(zs, reverse=True)
     # an unknown flag or order is ignored, as every filter of the page
     assert client.get(C + "scores/", {"flag": "bogus", "order": "x"}).status_code == 200
+
+
+def test_downloads_and_the_api_name_the_z_that_counts(client, run):
+    import csv
+    import io
+
+    first, second = AssignedValue.objects.filter(run=run, sigma_pt__isnull=False).order_by("pk")[:2]
+    AssignedValue.objects.filter(pk=first.pk).update(standard_uncertainty=1.5, sigma_pt=5.0)
+    AssignedValue.objects.filter(pk=second.pk).update(standard_uncertainty=1.55, sigma_pt=5.0)
+    login(client, "coordinator")
+    body = client.get(C + "scores.csv").content.decode()
+    table = list(csv.DictReader(io.StringIO(body)))
+    expected = {first.measurement_point_id: "z", second.measurement_point_id: "z_prime"}
+    for av in (first, second):
+        p = av.measurement_point
+        rows_at = [r for r in table if r["device"] == p.device.name and r["axis"] == p.axis
+                   and float(r["frequency_hz"]) == p.frequency_hz and r["bench"] == p.bench
+                   and r["direction"] == p.direction]  # fmt: skip
+        assert rows_at and {r["z_used"] for r in rows_at} == {expected[p.pk]}
+    api = client.get(f"/api/v1/comparisons/{run.comparison.code}/scores/",
+                     {"device": second.measurement_point.device.name,
+                      "axis": second.measurement_point.axis,
+                      "bench": second.measurement_point.bench,
+                      "direction": second.measurement_point.direction,
+                      "frequency_hz": repr(second.measurement_point.frequency_hz)})  # fmt: skip
+    assert api.status_code == 200
+    found = api.json()["results"]
+    assert found and {r["z_used"] for r in found} == {"z_prime"}
