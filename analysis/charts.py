@@ -27,6 +27,7 @@ if TYPE_CHECKING:
 
 matplotlib.use("Agg")  # no display; the canvas is attached explicitly anyway
 
+MANY = 80  # more laboratories than this: their codes are not written under the bars
 OWN = "#d63384"  # the reader's own lab: the same colour in every chart
 LAB = "#1f3a5f"
 BAND = "#9ec5fe"
@@ -112,13 +113,15 @@ def point_chart(
     )
     ax.axhspan(lo, hi, color=BAND, alpha=0.45, label="x_pt ± U(x_pt)")
     ax.axhline(assigned_value, color=LAB, lw=1, ls="--", label="x_pt")
-    for i, label in enumerate(labels):
-        colour = OWN if label == highlight else LAB
-        ax.errorbar(x[i], values[i], yerr=expanded_uncertainties[i], fmt="o", ms=4,
-                    color=colour, ecolor=colour, capsize=3, lw=1)  # fmt: skip
-    ax.set_xticks(x, labels, rotation=90 if len(labels) > 14 else 0)
-    _mark_own_tick(ax, labels, highlight)
+    own = np.array([label == highlight for label in labels], dtype=bool)
+    y, err = np.asarray(values, dtype=float), np.asarray(expanded_uncertainties, dtype=float)
+    size, cap = (4, 3) if len(labels) <= MANY else (2, 0)
+    for mask, colour in ((~own, LAB), (own, OWN)):  # one artist per colour, not per lab
+        if mask.any():
+            ax.errorbar(x[mask], y[mask], yerr=err[mask], fmt="o", ms=size, color=colour,
+                        ecolor=colour, capsize=cap, lw=1)  # fmt: skip
     ax.set_xlabel("Participant")
+    _lab_ticks(ax, x, labels, highlight)
     ax.set_ylabel(f"Sensitivity ({_unit(unit)})")
     ax.set_title(title)
     fig.legend(loc="outside lower center", ncols=2, frameon=False)
@@ -130,6 +133,21 @@ def _mark_own_tick(ax: Axes, labels: Sequence[str], highlight: str | None) -> No
         if label == highlight:
             tick.set_color(OWN)
             tick.set_fontweight("bold")
+
+
+def _lab_ticks(ax: Axes, x: np.ndarray, labels: Sequence[str], highlight: str | None) -> None:
+    """One tick per laboratory code up to ``MANY`` laboratories; beyond, where a code could
+    not be read anyway (and laying out a thousand tick labels takes seconds), only the
+    reader's own code is written and the axis says how many laboratories it holds."""
+    if len(labels) <= MANY:
+        ax.set_xticks(x, labels, rotation=90 if len(labels) > 14 else 0)
+        _mark_own_tick(ax, labels, highlight)
+        return
+    own = [i for i, label in enumerate(labels) if label == highlight]
+    ax.set_xticks(x[own], [labels[i] for i in own], rotation=90)
+    _mark_own_tick(ax, [labels[i] for i in own], highlight)
+    ax.set_xlim(-1, len(labels))
+    ax.set_xlabel(f"Participant ({len(labels)}, codes not written)")
 
 
 @_with_rc
@@ -150,15 +168,20 @@ def en_chart(
         OWN if lab == highlight else (BAD if abs(v) > limit else LAB)
         for lab, v in zip(labels, values, strict=True)
     ]
-    ax.bar(x, values, color=colours, width=0.6)
+    if len(labels) <= MANY:
+        ax.bar(x, values, color=colours, width=0.6)
+    else:  # one line collection instead of a thousand rectangles (a bar is a line here)
+        ax.vlines(x, 0, values, colors=colours, lw=0.8)
+        own = np.array([lab == highlight for lab in labels], dtype=bool)
+        if own.any():  # the reader's own bar drawn again on top, wider
+            ax.vlines(x[own], 0, values[own], colors=OWN, lw=2.5)
     for y in (limit, -limit):
         ax.axhline(y, color=BAD, lw=1, ls="--")
     ax.axhline(0, color="black", lw=0.6)
     top = max(1.5 * limit, float(np.nanmax(np.abs(values))) * 1.1 if values.size else 0)
     ax.set_ylim(-top, top)
-    ax.set_xticks(x, labels, rotation=90 if len(labels) > 14 else 0)
-    _mark_own_tick(ax, labels, highlight)
     ax.set_xlabel("Participant")
+    _lab_ticks(ax, x, labels, highlight)
     ax.set_ylabel("En")
     ax.set_title(title)
     return _svg(fig)

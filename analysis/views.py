@@ -11,10 +11,13 @@ The results pages serve two audiences with the same views and templates:
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from django.contrib import messages
 from django.contrib.auth.decorators import login_required
 from django.core.paginator import Page, Paginator
@@ -25,6 +28,7 @@ from django.urls import reverse
 from django.views.decorators.http import require_GET, require_POST
 
 from analysis import charts
+from analysis.chart_cache import cached_chart
 from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
 from analysis.models import AnalysisRun, AssignedValue, Publication, Score
 from analysis.performance import lab_performance, performance
@@ -78,10 +82,15 @@ class Viewer:
     def is_coordinator(self) -> bool:
         return self.audience == COORDINATOR
 
+    @cached_property
+    def current(self) -> AnalysisRun | None:
+        """The comparison's current run, read once per page (every tab's link needs it)."""
+        return current_run(self.comparison)
+
     def url(self, page: str) -> str:
         prefix = "" if self.is_coordinator else "lab_"
         url = reverse(f"coordinator:{prefix}{page}", args=[self.comparison.code])
-        current = current_run(self.comparison)
+        current = self.current
         if self.is_coordinator and self.run and current and self.run.pk != current.pk:
             url += f"?run={self.run.pk}"
         return url
@@ -112,7 +121,7 @@ def _chosen_run(comparison: Comparison, run_id: str) -> AnalysisRun | None:
 
 def _render(request: HttpRequest, viewer: Viewer, page: str, context: dict) -> HttpResponse:
     base = {"viewer": viewer, "comparison": viewer.comparison, "run": viewer.run, "page": page,
-            "current": current_run(viewer.comparison)}  # fmt: skip
+            "current": viewer.current}  # fmt: skip
     if viewer.run is None:
         return render(request, "analysis/no_results.html", base)
     return render(request, f"analysis/{page}.html", base | context)
@@ -384,6 +393,12 @@ def _run_points(run: AnalysisRun) -> list[MeasurementPoint]:
 
 def _point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str]:
     assert viewer.run is not None
+    parts = (point.pk, viewer.own_code, viewer.comparison.en_limit)
+    return cached_chart(viewer.run, "point", parts, lambda: _draw_point_charts(viewer, point))
+
+
+def _draw_point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str]:
+    assert viewer.run is not None
     av = viewer.run.assigned_values.get(measurement_point=point)
     found = list(run_scores(viewer.run, {}).filter(result__measurement_point=point))
     labels = [s.result.submission.participant.code for s in found]
@@ -402,6 +417,13 @@ def _point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str]:
 
 def _frequency_charts(viewer: Viewer) -> list[str]:
     """Per device, sensitivity vs frequency per axis: the run's frequency matrices (§3 means)."""
+    assert viewer.run is not None
+    devices = tuple(viewer.comparison.devices.order_by("pk").values_list(
+        "name", "unit", "nominal_sensitivity", "tolerance", "tolerance_relative"))  # fmt: skip
+    return cached_chart(viewer.run, "frequency", devices, lambda: _draw_frequency_charts(viewer))
+
+
+def _draw_frequency_charts(viewer: Viewer) -> list[str]:
     assert viewer.run is not None
     by_device: dict[str, list[charts.Series]] = {}
     for m in run_matrices(viewer.run, "frequency", {}):
@@ -440,12 +462,20 @@ def charts_page(request: AuthenticatedHttpRequest, code: str, audience: str) -> 
     return _render(request, viewer, "charts", context)
 
 
+def _digest(en: Any) -> str:
+    """A matrix's En values in the key: a lab matrix is computed on request from filters."""
+    return hashlib.sha256(np.asarray(en, dtype=float).tobytes()).hexdigest()[:16]
+
+
 def _matrix_view(title: str, m: Any, viewer: Viewer) -> dict:  # stored, or lab_matrices' (Any)
     levels = [str(v) if not isinstance(v, float) else f"{v:g} Hz" for v in m.levels]
     values = getattr(m, "values", None) or list(m.value)
     big_u = getattr(m, "expanded_uncertainties", None) or list(m.expanded_uncertainty)
-    svg = charts.heatmap(levels, m.en, title=title, limit=viewer.comparison.en_limit,
-                         highlight=viewer.own_code)  # fmt: skip
+    assert viewer.run is not None
+    limit = viewer.comparison.en_limit
+    parts = (title, tuple(levels), viewer.own_code, limit, _digest(m.en))
+    svg = cached_chart(viewer.run, "heatmap", parts, lambda: charts.heatmap(
+        levels, m.en, title=title, limit=limit, highlight=viewer.own_code))  # fmt: skip
     return {"title": title, "svg": svg, "incompatible": int(m.incompatible_pairs),
             "levels": list(zip(levels, values, big_u, strict=True))}  # fmt: skip
 

@@ -43,7 +43,8 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("a_staff", f"/lab/comparisons/{C1}/submissions/", 10, ""),
     ("a_staff", f"/lab/comparisons/{C1}/raw-data/", 13, ""),
     ("a_staff", f"/reports/{C1}/", 11, "published"),
-    ("a_staff", f"/results/{C1}/", 19, "published"),
+    # + its performance summary: the grouped counts, the maxima, the largest |En| and |z|
+    ("a_staff", f"/results/{C1}/", 23, "published"),
     ("a_staff", f"/results/{C1}/scores/", 20, "published"),
     # laboratory API (API key)
     ("key_a", "/api/v1/comparisons/", 5, ""),
@@ -60,6 +61,7 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("coord1", f"/coordinator/{C1}/results/", 19, ""),
     ("coord1", f"/coordinator/{C1}/analysis/runs/", 11, ""),
     ("coord1", f"/coordinator/{C1}/scores/", 19, ""),
+    ("coord1", f"/coordinator/{C1}/performance/", 19, ""),
     ("coord1", f"/coordinator/{C1}/raw-data/", 10, ""),
     ("coord1", f"/reports/{C1}/", 11, ""),
     # coordinator API (session)
