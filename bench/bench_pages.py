@@ -90,7 +90,10 @@ def _publish_demo():
     from analysis.selectors import current_run
 
     run = current_run(comparison)
-    point = run.assigned_values.order_by("pk").first().measurement_point_id
+    assert run is not None
+    first = run.assigned_values.order_by("pk").first()
+    assert first is not None
+    point = first.measurement_point_id
     c, p = f"/coordinator/{comparison.code}/", f"/results/{comparison.code}/"
     tail = ["scores/", "scores/?order=en", f"charts/?point={point}", "compatibility/",
             "compatibility/?factor=axis", "consistency/"]  # fmt: skip
@@ -110,7 +113,10 @@ def _clients(code: str):
     coordinator = Client()
     coordinator.force_login(get_user_model().objects.get(username="coordinator"))
     participant = Client()
-    member = Participant.objects.filter(comparison__code=code).first().laboratory.members.first()
+    one = Participant.objects.filter(comparison__code=code).order_by("code").first()
+    assert one is not None
+    member = one.laboratory.members.first()
+    assert member is not None
     participant.force_login(member.user)
     return {"coordinator": coordinator, "participant": participant}
 
@@ -126,7 +132,7 @@ def _large(labs: int, n: int) -> None:
     values = 100 + rng.normal(0, 0.5, labs)
     big_u = np.abs(rng.normal(1.0, 0.2, labs))
     en = (values - 100) / big_u
-    times = {"point": [], "en": []}
+    times: dict[str, list[float]] = {"point": [], "en": []}
     for _ in range(n):
         start = time.perf_counter()
         charts.point_chart(codes, values.tolist(), big_u.tolist(), assigned_value=100.0,
