@@ -19,6 +19,7 @@ checks it).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from decimal import ROUND_HALF_EVEN, Decimal
 from typing import Final
 
@@ -132,10 +133,28 @@ def value_with_uncertainty(
     return _text(_quantize(x, uncertainty_exponent(float(u), digits))), u_text
 
 
-def round_to_uncertainty(x: float | None, u: float | None, digits: int = UNCERTAINTY_DIGITS) -> str:
+def round_to_uncertainty(
+    x: float | None, u: float | None, digits: int = UNCERTAINTY_DIGITS, *, sign: bool = False
+) -> str:
     """``x`` rounded to the decimal place of ``u``'s last significant digit: a column of
-    values (or of D, a median) beside a column of their uncertainties."""
-    return value_with_uncertainty(x, u, digits)[0]
+    values (or of D, a median) beside a column of their uncertainties.  ``sign`` puts
+    ``+`` before a positive number that does not round to zero (D: ``+1.468``)."""
+    text = value_with_uncertainty(x, u, digits)[0]
+    if sign and x is not None and float(x) > 0 and text.strip("0.") not in ("", "∞"):
+        return "+" + text
+    return text
+
+
+def column_places(values: Iterable[float | None], digits: int = 6) -> int:
+    """The number of decimals that writes the largest finite ``|value|`` of a column to
+    ``digits`` significant digits (at least 0): one rule for a whole column of values
+    that have no uncertainty of their own, so that ``422`` and ``419.468`` are written
+    ``422.000`` and ``419.468``.  0 for a column without a non-zero finite value."""
+    sizes = [abs(float(v)) for v in values if v is not None and math.isfinite(float(v))]
+    largest = max(sizes, default=0.0)
+    if largest == 0:
+        return 0
+    return max(0, digits - 1 - Decimal(largest).adjusted())
 
 
 def percent_fraction(percent: float) -> float:

@@ -8,6 +8,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from common.numbers import (
+    column_places,
     fixed,
     percent_fraction,
     plain,
@@ -158,3 +159,13 @@ def test_plain_gives_the_number_back_to_fifteen_digits(x):
     text = plain(x)
     assert "e" not in text.lower()
     assert math.isclose(float(text), x, rel_tol=1e-14, abs_tol=0.0) or x == 0
+
+
+def test_signed_value_to_its_uncertainty_and_column_places():
+    assert round_to_uncertainty(4.0, 0.011, sign=True) == "+4.000"
+    assert round_to_uncertainty(1.4684, 0.013, sign=True) == "+1.468"
+    assert round_to_uncertainty(-2.0, 0.013, sign=True) == "-2.000"
+    assert round_to_uncertainty(0.0001, 0.013, sign=True) == "0.000"  # no sign on a zero
+    assert column_places([422.0, 419.468]) == 3  # six significant digits of 422
+    assert column_places([0.00123, None, math.nan]) == 8
+    assert column_places([123456789.0]) == 0 and column_places([]) == 0

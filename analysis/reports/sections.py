@@ -21,6 +21,7 @@ from analysis.reports.data import (
 from analysis.reports.styles import GRID, HEAD_BACKGROUND, OWN_BACKGROUND
 from analysis.reports.styles import STYLES as S
 from analysis.reports.tables import FastTable, cell_styles
+from common import numbers
 from common.sizes import counted
 
 CONFIDENTIALITY = (
@@ -52,6 +53,31 @@ STATUS_TEXT = {
 
 def num(value: float | None, spec: str) -> str:
     return "–" if value is None else format(value, spec)
+
+
+# The numbers of a table (docs/domain.md §3.1): an uncertainty (U, u, σ_pt, u_stab) to two
+# significant digits; a value beside its own uncertainty (and D beside the result's U)
+# rounded to that uncertainty's last digit, trailing zeros kept; a column of values with
+# no uncertainty of their own to one number of decimals for the whole column
+# (``numbers.column_places``); scores to two decimals.
+
+
+def unc(u: float | None) -> str:
+    """An uncertainty-like number (U, u, σ_pt) to two significant digits; – for none."""
+    return "–" if u is None else numbers.uncertainty(u)
+
+
+def by_unc(x: float | None, u: float | None, *, sign: bool = False) -> str:
+    """``x`` to the last digit of ``unc(u)`` (GUM 7.2.6); – for none."""
+    return "–" if x is None else numbers.round_to_uncertainty(x, u, sign=sign)
+
+
+def at(x: float | None, places: int, *, sign: bool = False) -> str:
+    """``x`` with ``places`` decimals (a column's :func:`numbers.column_places`)."""
+    if x is None:
+        return "–"
+    text = numbers.fixed(x, places)
+    return "+" + text if sign and x > 0 and text.strip("0.") else text
 
 
 def para(text: str, style: str = "body") -> Paragraph:
@@ -204,19 +230,20 @@ def _stability_table(data: ReportData) -> list[Flowable]:
         return []
     rows = [["Device", "Point", "before", "after", "Δ", "En", "0.3·σ_pt", "Stable", "u_stab"]]
     bad = []
+    places = numbers.column_places(v for r in data.stability_rows for v in (r.before, r.after))
     for n, r in enumerate(data.stability_rows, start=1):
         p = data.points[r.point]
         rows.append(
             [
                 p.device,
                 p.label,
-                f"{r.before:.6g}",
-                f"{r.after:.6g}",
-                f"{r.delta:+.3g}",
+                at(r.before, places),
+                at(r.after, places),
+                at(r.delta, places, sign=True),
                 f"{r.en:.2f}",
-                num(r.limit, ".3g"),
+                unc(r.limit),
                 "yes" if r.stable else "no",
-                f"{r.u_stab:.3g}",
+                unc(r.u_stab),
             ]
         )
         if not r.stable:
@@ -261,10 +288,10 @@ def assigned_values(data: ReportData) -> list[Flowable]:
             [
                 p.device,
                 p.label,
-                f"{a.value:.6g}",
-                f"{a.standard_uncertainty:.3g}",
-                f"{a.expanded_uncertainty:.3g}{k}",
-                num(a.sigma_pt, ".3g"),
+                by_unc(a.value, a.standard_uncertainty),
+                unc(a.standard_uncertainty),
+                f"{unc(a.expanded_uncertainty)}{k}",
+                unc(a.sigma_pt),
                 method,
             ]
         )
@@ -336,11 +363,15 @@ def _spread_table(data: ReportData) -> list[Flowable]:
     """Per point: number of results, min / median / max, x_pt and the incompatible count."""
     x_pt = {a.point: a.value for a in data.assigned}
     rows = [["Device", "Point", "n", "min", "median", "max", "x_pt", "|En| > limit"]]
-    for r in data.round.spread:
+    spread = data.round.spread
+    places = numbers.column_places(
+        v for r in spread for v in (r.low, r.median, r.high, x_pt.get(r.point))
+    )
+    for r in spread:
         p = data.points[r.point]
         rows.append(
-            [p.device, p.label, str(r.n), f"{r.low:.6g}", f"{r.median:.6g}", f"{r.high:.6g}",
-             num(x_pt.get(r.point), ".6g"), str(r.bad)]
+            [p.device, p.label, str(r.n), at(r.low, places), at(r.median, places),
+             at(r.high, places), at(x_pt.get(r.point), places), str(r.bad)]
         )  # fmt: skip
     widths = [16 * mm, 46 * mm, 12 * mm, 20 * mm, 20 * mm, 20 * mm, 20 * mm, 20 * mm]
     return [table(rows, widths), Spacer(1, 2 * mm)]
@@ -384,8 +415,10 @@ def result_cells(
     """One row of the results table (both the one-table and the page-by-page listing);
     ``inside`` marks the lab code (see INTERPRETATION), ``failed`` puts † after En."""
     en_text = num(en, ".2f") + ("†" if failed else "")
-    return [label, lab + INSIDE_MARK[inside], f"{value:.6g}", f"{big_u:.3g}", f"{k:g}",
-            num(d, "+.4g"), en_text, num(zeta, ".2f"), num(z, ".2f"), flag]  # fmt: skip
+    x_text, u_text = numbers.value_with_uncertainty(value, big_u)
+    return [label, lab + INSIDE_MARK[inside], x_text, u_text, f"{k:g}",
+            by_unc(d, big_u, sign=True), en_text, num(zeta, ".2f"), num(z, ".2f"),
+            flag]  # fmt: skip
 
 
 RESULT_WIDTHS = [
@@ -481,7 +514,8 @@ def matrices(data: ReportData) -> list[Flowable]:
         rows = [head]
         bad = []
         for i, level in enumerate(m.levels):
-            row = [level, f"{m.values[i]:.6g}", f"{m.expanded_uncertainties[i]:.3g}"]
+            value, big_u = m.values[i], m.expanded_uncertainties[i]
+            row = [level, by_unc(value, big_u), unc(big_u)]
             row += ["–" if i == j else f"{e:.2f}" for j, e in enumerate(m.en[i])]
             bad += [(i + 1, j + 3) for j, e in enumerate(m.en[i]) if i != j and e > data.en_limit]
             rows.append(row)

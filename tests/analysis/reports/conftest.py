@@ -57,3 +57,29 @@ def published_missing_reports(comparison):
         published = comparison_transition(comparison=comparison, to="published")
         reports_preliminary_supersede(comparison=published)
     return published
+
+
+def pdftotext(pdf: bytes, tmp_path, first: int | None = None, last: int | None = None) -> str:
+    """poppler's ``pdftotext -layout`` of pages ``first`` to ``last`` (all by default)."""
+    import subprocess
+
+    path = tmp_path / "report-for-text.pdf"
+    path.write_bytes(pdf)
+    pages = [*(["-f", str(first)] if first else []), *(["-l", str(last)] if last else [])]
+    done = subprocess.run(
+        ["pdftotext", "-layout", *pages, str(path), "-"], check=True, capture_output=True
+    )
+    return done.stdout.decode("utf8")
+
+
+def page_count(pdf: bytes, tmp_path) -> int:
+    """The number of pages, from poppler's ``pdfinfo``."""
+    import re
+    import subprocess
+
+    path = tmp_path / "report-for-info.pdf"
+    path.write_bytes(pdf)
+    info = subprocess.run(["pdfinfo", str(path)], check=True, capture_output=True).stdout
+    found = re.search(rb"^Pages:\s+(\d+)", info, re.M)
+    assert found is not None
+    return int(found.group(1))

@@ -133,9 +133,11 @@ def test_listing_rows_print_every_result_with_its_label_on_each_page():
     assert len(rows) == 400
     assert [r[0] for r in rows] == [f"L{i:05d}" for i in range(200)] * 2
     first = rows[0]
-    assert first[1:] == ["418", "4", "2", "+0", "0.00", "0.00", "–", "satisfactory"]
+    # U 4 to two significant digits, the value and D to its last digit
+    assert first[1:] == ["418.0", "4.0", "2", "0.0", "0.00", "0.00", "–", "satisfactory"]
     # row 6 of each point: value 418 + 6 → En 1.43 > 1, flag "action"
-    assert rows[6][1] == "424" and rows[6][5] == "1.43" and rows[6][8] == "action"
+    assert rows[6][1] == "424.0" and rows[6][4] == "+6.0"
+    assert rows[6][5] == "1.43" and rows[6][8] == "action"
     # the point's label at its first row and again at the top of each later page
     label = data.points[0].label
     result_pages = [p for p in pages if "L00" in p]

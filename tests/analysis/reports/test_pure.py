@@ -84,7 +84,8 @@ def test_large_round_participant_report_lists_own_rows_and_the_spread(monkeypatc
     assert "the summary report lists every result by code" in results
     assert "L22" in results and "L11" not in results and "L33" not in results
     # spread per point: n = 3, min / median / max of 418+0+i, 418+1+i, 418+2+i
-    assert "3 418 419 420 418" in results and "3 419 420 421 418" in results
+    assert "3 418.000 419.000 420.000 418.000" in results
+    assert "3 419.000 420.000 421.000 418.000" in results
 
 
 def test_stability_rows_are_printed_with_the_verdict():
@@ -93,5 +94,5 @@ def test_stability_rows_are_printed_with_the_verdict():
         StabilityRow(1, 418.0, 420.0, 2.0, 7.07, 1.254, False, 1.1547),
     )
     text = flat(render_report(dataclasses.replace(small_report(), stability_rows=rows)))
-    assert "418.1 418.3 +0.2 0.16 1.25 yes 0" in text
-    assert "418 420 +2 7.07 1.25 no 1.15" in text
+    assert "418.100 418.300 +0.200 0.16 1.3 yes 0" in text
+    assert "418.000 420.000 +2.000 7.07 1.3 no 1.2" in text

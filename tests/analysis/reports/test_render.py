@@ -10,6 +10,7 @@ import pytest
 from analysis.models import AssignedValue, Score
 from analysis.reports.assemble import report_data
 from analysis.reports.render import END_MARK, render_report
+from common.numbers import round_to_uncertainty, value_with_uncertainty
 from labs.models import Laboratory, Participant
 from tests.analysis.reports.conftest import pdf_text
 
@@ -95,8 +96,10 @@ def test_summary_has_every_item_and_the_run_numbers(analysed, settings):
     assert len(rows) == len(scores) == 891
     for row, (lab, value, big_u, d, en, zeta) in zip(rows, scores, strict=True):
         assert row[0] == lab
-        assert close(row[1], value, 1e-5) and close(row[2], big_u, 5e-3)
-        assert close(row[4], d, 1e-3) and close(row[5], en, 0) and close(row[6], zeta, 0)
+        # GUM 7.2.6: U to two significant digits, the value and D to U's last digit
+        assert (row[1], row[2]) == value_with_uncertainty(value, big_u)
+        assert row[4] == round_to_uncertainty(d, big_u, sign=True)
+        assert close(row[5], en, 0) and close(row[6], zeta, 0)
 
 
 def test_assigned_values_printed(analysed):
@@ -108,7 +111,7 @@ def test_assigned_values_printed(analysed):
     stored = list(found.values_list("value", "standard_uncertainty"))
     assert len(printed) == len(stored) == 81
     for (x, u), (value, unc) in zip(printed, stored, strict=True):
-        assert close(x, value, 1e-5) and close(u, unc, 5e-3)
+        assert (x, u) == value_with_uncertainty(value, unc)
 
 
 def test_rendering_is_byte_identical(analysed):

@@ -8,6 +8,7 @@ import pytest
 from analysis.models import AssignedValue
 from analysis.reports.assemble import report_data
 from analysis.reports.render import render_report
+from common.numbers import uncertainty
 from proficiency.models import ReferenceValue
 from tests.analysis.reports.conftest import pdf_text
 
@@ -45,7 +46,10 @@ def test_stability_table_matches_hand_calculation(analysed):
     assert not b.stable and b.u_stab == pytest.approx(2.0 / math.sqrt(3))
     text = " ".join("\n".join(pdf_text(render_report(data))).split())
     assert "2 measurement points; 1 is stable (" in text and "En ≤ 1) and 1 is not." in text
-    assert f"+2 {b.en:.2f} {0.3 * sigma:.3g} no {2 / math.sqrt(3):.3g}" in text
+    # Δ with the decimals of the before/after column (6 significant digits of ≈ 420), the
+    # limit and u_stab to two significant digits
+    limit, u_stab = uncertainty(0.3 * sigma), uncertainty(2 / math.sqrt(3))
+    assert f"+2.000 {b.en:.2f} {limit} no {u_stab}" in text
     # the scores use u(x_pt) = u_char (docs/domain.md §5.8): the report must not claim
     # that the drift entered them
     assert "the scores of this round use u(x_pt) = u_char and do not include it" in text

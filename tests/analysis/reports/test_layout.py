@@ -1,0 +1,52 @@
+"""What makes a report worth signing (issue 19): one rule for the decimals of a column,
+no heading alone at the foot of a page, the provider's furniture on every page.  No
+database: a hand-made report, read back with poppler (pdftotext, pdfinfo, pdfimages)."""
+
+import dataclasses
+import re
+
+from analysis.reports.data import AssignedRow, MatrixData, ResultRow, ScoreRow
+from analysis.reports.render import render_report
+from tests.analysis.reports.conftest import pdftotext
+from tests.analysis.reports.test_visual import small_report
+
+
+def words(text: str) -> str:
+    return " ".join(text.split())
+
+
+MATRIX = MatrixData("lab", "all", ("a", "b"), (418.0, 419.4684), (0.011, 1.0),
+                    ((0.0, 0.1), (0.1, 0.0)), 0)  # fmt: skip
+
+
+def test_a_value_follows_its_uncertainty_with_its_trailing_zeros(tmp_path):
+    """The defects seen: value "422" beside "419.468", D "+4" beside "+1.468".  Each row's
+    value and D are rounded to the last digit of its U (two significant digits)."""
+    base = small_report()
+    results = (
+        ResultRow(0, "L11", 422.0, 0.011, 2.0),
+        ResultRow(0, "L22", 419.4684, 0.013, 2.0),
+        ResultRow(0, "L33", 418.0, 4.0, 2.0),
+    )
+    scores = tuple(
+        ScoreRow(r.point, r.lab, r.value - 418.0, 0.1, 0.5, 0.25, None, "z′", "satisfactory",
+                 "", False)
+        for r in results
+    )  # fmt: skip
+    data = dataclasses.replace(
+        base,
+        results=results,
+        scores=scores,
+        assigned=(AssignedRow(0, 418.01234, 0.0123, "Nominal", 4.1801),),
+        matrices=(MATRIX,),
+        chart_points=(),
+    )
+    text = words(pdftotext(render_report(data), tmp_path))
+    assert "L11 422.000 0.011 2 +4.000 0.50" in text
+    assert "L22 419.468 0.013 2 +1.468 0.50" in text
+    assert "L33 418.0 4.0 2 0.0 0.50" in text
+    # x_pt to the last digit of u(x_pt); u, U and σ_pt to two significant digits
+    assert "418.012 0.012 0.025 4.2 Nominal" in text
+    # a matrix level's value to its U
+    assert "a 418.000 0.011" in text and "b 419.5 1.0" in text
+    assert not re.search(r"\b422 ", text) and "+4 " not in text
