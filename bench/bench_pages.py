@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Server time of the demo round's results and chart pages (issue 19, Deliver 7; target
+"""Server time of the demo round's results and chart pages (target
 < 300 ms each once the run's charts exist), and of the charts of a 1,000-laboratory
 point (target < 1 s).
 

@@ -1,4 +1,4 @@
-"""Per-laboratory performance summary (issue 19, Deliver 1): flag counts per score type,
+"""Per-laboratory performance summary: flag counts per score type,
 by device, bench and axis, the largest scores; on the participant's results page and the
 coordinator's performance pages. The counts are checked against a brute-force count of
 the run's score rows, the z rule (z′ where u(x_pt) > 0.3 σ_pt) against the assigned

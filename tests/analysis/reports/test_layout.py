@@ -1,4 +1,4 @@
-"""What makes a report worth signing (issue 19): one rule for the decimals of a column,
+"""What makes a report worth signing: one rule for the decimals of a column,
 no heading alone at the foot of a page, the provider's furniture on every page.  No
 database: a hand-made report, read back with poppler (pdftotext, pdfinfo, pdfimages)."""
 
