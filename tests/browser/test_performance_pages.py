@@ -16,19 +16,11 @@ from analysis.services import analysis_run_start
 from coordination.demo import load_demo
 from labs.models import Participant
 from proficiency.models import Comparison
+from tests.browser.test_two_bench_round import PASSWORD, _sign_in
 
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
-PASSWORD = "demo password for the browser"
 CODE = "IMU-2024-DEMO"
-
-
-def _sign_in(page: Page, base: str, username: str) -> None:
-    page.goto(f"{base}/accounts/login/")
-    page.get_by_label("Username").fill(username)
-    page.get_by_label("Password").fill(PASSWORD)
-    page.get_by_role("button", name="Sign in").click()
-    expect(page.get_by_role("button", name="Log out")).to_be_visible()
 
 
 def test_participant_and_coordinators_read_the_performance_summary(
