@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
-from decimal import ROUND_HALF_EVEN, Decimal
+from decimal import ROUND_HALF_EVEN, Decimal, getcontext
 from typing import Final
 
 #: Significant digits of an uncertainty (GUM 7.2.6: "at most two significant digits").
@@ -130,7 +130,13 @@ def value_with_uncertainty(
     u_text = uncertainty(u, digits)
     if u is None or not math.isfinite(x) or not math.isfinite(float(u)) or float(u) == 0:
         return plain(x), u_text
-    return _text(_quantize(x, uncertainty_exponent(float(u), digits))), u_text
+    exponent = uncertainty_exponent(float(u), digits)
+    if x != 0 and Decimal(x).adjusted() - exponent >= getcontext().prec:
+        # the uncertainty's place lies further below the value's first digit than decimal
+        # rounding reaches (1e308 ± 1e-300 would need some 600 digits the value does not
+        # have): the value as it is
+        return plain(x), u_text
+    return _text(_quantize(x, exponent)), u_text
 
 
 def round_to_uncertainty(

@@ -169,3 +169,12 @@ def test_signed_value_to_its_uncertainty_and_column_places():
     assert column_places([422.0, 419.468]) == 3  # six significant digits of 422
     assert column_places([0.00123, None, math.nan]) == 8
     assert column_places([123456789.0]) == 0 and column_places([]) == 0
+
+
+def test_a_value_far_above_its_uncertainty_is_written_as_it_is_not_to_600_digits():
+    from common.numbers import plain, round_to_uncertainty, value_with_uncertainty
+
+    # 1e308 ± 1e-300 would need ~600 digits (decimal.InvalidOperation before)
+    assert value_with_uncertainty(1e308, 1e-300)[0] == plain(1e308)
+    assert round_to_uncertainty(1e308, 1e-300, sign=True) == "+" + plain(1e308)
+    assert round_to_uncertainty(419.4712, 0.1349) == "419.47"  # the rule holds below

@@ -293,6 +293,14 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    "coordinator/<slug:code>/performance/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/performance/<slug:lab>/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
     "coordinator/<slug:code>/scores.<str:fmt>": Row(
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",

@@ -77,6 +77,7 @@ class World:
             "code": C1,
             "version": 2,
             "participant": LAB_A_CODE,
+            "lab": LAB_A_CODE,
             "lab_pk": self.lab_a.pk,
             "prefix": self.key_a.prefix,
             "token": self.report_a.token,
