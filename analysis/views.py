@@ -283,7 +283,7 @@ def results(request: AuthenticatedHttpRequest, code: str, audience: str) -> Http
         "n_approximate": approximate_subsets(viewer.run),
         "exact_max": EXACT_MAX,
         "may_publish": viewer.is_coordinator and c.status == ComparisonStatus.ANALYSED
-        and viewer.run == current_run(c),
+        and viewer.run == viewer.current,
         # a participant's landing page starts with how it did
         "summary": lab_performance(viewer.run, viewer.own_code) if viewer.own_code else None,
         "scores_url": viewer.url("scores"),
