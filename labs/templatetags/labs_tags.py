@@ -133,6 +133,14 @@ def fixed(value: float | None, places: int = 2) -> str:
 
 
 @register.filter
+def signed_to(value: float | None, uncertainty: float | None) -> str:
+    """D with its sign, rounded like its row's value: to the place of the row's U
+    (``{{ s.d|signed_to:r.expanded_uncertainty }}``: ``+1.47`` beside ``419.47``), as the
+    report writes it (docs/domain.md §3.1)."""
+    return numbers.round_to_uncertainty(value, uncertainty, sign=True)
+
+
+@register.filter
 def signed(value: float | None, digits: int = 4) -> str:
     """D with its sign to ``digits`` significant digits, as the PDF (``+0.01235``)."""
     return numbers.significant(value, int(digits), sign=True)
@@ -168,7 +176,7 @@ def unit_heading(unit: str) -> str:
     """`` (mV/(m/s²))`` after a column heading, or `` (unit in each row)`` for a table of
     several units."""
     if unit:
-        return format_html(' <span class="fw-normal text-nowrap">({})</span>', unit)
+        return format_html(' <span class="fw-normal text-nowrap d-block small">({})</span>', unit)
     return format_html(' <span class="fw-normal small">{}</span>', "(unit in each row)")
 
 

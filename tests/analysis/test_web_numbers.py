@@ -21,7 +21,7 @@ def login(client, name):
 
 
 def heading(unit: str) -> str:
-    return f' <span class="fw-normal text-nowrap">({unit})</span>'
+    return f' <span class="fw-normal text-nowrap d-block small">({unit})</span>'
 
 
 def cells(page: str) -> list[str]:
@@ -72,7 +72,7 @@ def test_scores_page_writes_value_u_d_en_zeta_z_as_the_pdf(client, run):
     assert score is not None
     plant(score.result, 3.4160160000000004, 0.0123)
     Score.objects.filter(pk=score.pk).update(
-        d=0.0000123456, en=0.125, zeta=-1.23456789, z=2.0000000000000004, z_prime=1.999
+        d=12.3456, en=0.125, zeta=-1.23456789, z=2.0000000000000004, z_prime=1.999
     )
     point = score.result.measurement_point
     login(client, "coordinator")
@@ -84,9 +84,9 @@ def test_scores_page_writes_value_u_d_en_zeta_z_as_the_pdf(client, run):
     row = next(
         cells(r) for r in re.findall(r"<tr[^>]*>.*?</tr>", page, re.S) if "3.416" in cells(r)
     )
-    # value, U, D (+.4g), En (.2f, ties to even as format()), ζ, and z′, the one that counts
+    # value, U, D to the value's place (its row's U, as the report), En (.2f, ties to even as format()), ζ, and z′, the one that counts
     # here: u(x_pt) = 418 · 1 % / √3 = 2.41 > 0.3 σ_pt = 1.25 (σ_pt = 1 % of 418)
-    assert row[7:13] == ["3.416", "0.012", "+0.00001235", "0.12", "-1.23", "z′ 2.00"]
+    assert row[7:13] == ["3.416", "0.012", "+12.346", "0.12", "-1.23", "z′ 2.00"]
     unit = point.device.unit
     assert f"Value{heading(unit)}</th>" in page and f"D{heading(unit)}</th>" in page
     # the download keeps full precision (docs/architecture.md §4)
@@ -94,7 +94,7 @@ def test_scores_page_writes_value_u_d_en_zeta_z_as_the_pdf(client, run):
         C + "scores.csv", {"lab": score.result.submission.participant.code}
     ).content.decode()
     assert "3.4160160000000004" in download and ",0.0123," in download
-    assert ",-1.23456789," in download and f",{0.0000123456!r}," in download
+    assert ",-1.23456789," in download and ",12.3456," in download
 
 
 def test_results_page_writes_assigned_values_by_their_u(client, run):

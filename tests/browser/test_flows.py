@@ -299,5 +299,10 @@ def test_coordinator_publishes_and_lab_downloads_pdf(
     expect(lab_page.locator('span[title="in the assigned value"]')).to_have_count(27)
     expect(lab_page.get_by_text("the result entered its point's assigned value")).to_be_visible()
     expect(rows.filter(has_text=own.code).first).to_have_class(re.compile("own-row"))
+    # every column is in view at 1280 px: the table does not scroll sideways
+    scroll, width = lab_page.locator(".table-responsive").first.evaluate(
+        "e => [e.scrollWidth, e.clientWidth]"
+    )
+    assert scroll <= width, f"the scores table scrolls sideways ({scroll} > {width} px)"
     shots(lab_page, "lab-scores-inclusion")
     assert console_errors == []

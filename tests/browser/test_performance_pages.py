@@ -47,6 +47,11 @@ def test_participant_and_coordinators_read_the_performance_summary(
     expect(card.locator("table.performance-device tbody tr")).to_have_count(3)
     expect(card.locator("table.worst-en tbody tr")).to_have_count(5)
     shots(page, "participant-results-summary")
+    # at 1280 px no table of the page scrolls sideways (units under the headings)
+    for scroll, width in page.locator(".table-responsive").evaluate_all(
+        "els => els.map(e => [e.scrollWidth, e.clientWidth])"
+    ):
+        assert scroll <= width, f"a table of the results page scrolls sideways ({scroll} > {width})"
     page.get_by_role("link", name=f"All scores of {lab.code}, largest |En| first").click()
     expect(page.locator("tbody tr.own-row").first).to_be_visible()
     shots(page, "participant-scores-largest-first")
