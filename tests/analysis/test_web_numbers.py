@@ -84,7 +84,8 @@ def test_scores_page_writes_value_u_d_en_zeta_z_as_the_pdf(client, run):
     row = next(
         cells(r) for r in re.findall(r"<tr[^>]*>.*?</tr>", page, re.S) if "3.416" in cells(r)
     )
-    # value, U, D to the value's place (its row's U, as the report), En (.2f, ties to even as format()), ζ, and z′, the one that counts
+    # value, U, D to the value's place (its row's U, as the report), En (.2f, ties to
+    # even as format()), ζ, and z′, the one that counts
     # here: u(x_pt) = 418 · 1 % / √3 = 2.41 > 0.3 σ_pt = 1.25 (σ_pt = 1 % of 418)
     assert row[7:13] == ["3.416", "0.012", "+12.346", "0.12", "-1.23", "z′ 2.00"]
     unit = point.device.unit
