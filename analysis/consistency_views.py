@@ -33,14 +33,12 @@ def consistency(request: AuthenticatedHttpRequest, code: str, audience: str) -> 
     if viewer.run is None:
         return _render(request, viewer, "consistency", {})
     signals = request.GET.get("signals") == "1"
-    page = _page(request, run_consistency(viewer.run, signals_only=signals), 25)
-    query = request.GET.copy()
-    query.pop("page", None)
+    page, query = _page(request, run_consistency(viewer.run, signals_only=signals), 25)
     context = {
         "page_obj": page,
         "points": [point_view(a, viewer) for a in page],
         "signals": signals,
-        "query": query.urlencode(),
+        "query": query,
         "n_signalling": run_consistency(viewer.run, signals_only=True).count(),
     }
     return _render(request, viewer, "consistency", context)

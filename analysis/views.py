@@ -127,8 +127,14 @@ def _render(request: HttpRequest, viewer: Viewer, page: str, context: dict) -> H
     return render(request, f"analysis/{page}.html", base | context)
 
 
-def _page(request: HttpRequest, items: QuerySet[Any] | Sequence[Any], per_page: int) -> Page:
-    return Paginator(items, per_page).get_page(request.GET.get("page"))
+def _page(
+    request: HttpRequest, items: QuerySet[Any] | Sequence[Any], per_page: int
+) -> tuple[Page, str]:
+    """The requested page of ``items`` and the request's query without ``page`` (the
+    pagination links add their own)."""
+    query = request.GET.copy()
+    query.pop("page", None)
+    return Paginator(items, per_page).get_page(request.GET.get("page")), query.urlencode()
 
 
 # --- runs ---------------------------------------------------------------------------------
@@ -152,7 +158,7 @@ def runs(request: AuthenticatedHttpRequest, code: str) -> HttpResponse:
     comparison = coordinated(request, code)
     context = {
         "comparison": comparison,
-        "runs": _page(request, comparison.analysis_runs.select_related("created_by"), 25),
+        "runs": _page(request, comparison.analysis_runs.select_related("created_by"), 25)[0],
         "current": current_run(comparison),
     }
     return render(request, "analysis/runs.html", context)
@@ -277,8 +283,10 @@ def results(request: AuthenticatedHttpRequest, code: str, audience: str) -> Http
     if viewer.run is None:
         return _render(request, viewer, "results", {})
     c = viewer.comparison
+    assigned, query = _page(request, _assigned(viewer.run), 100)
     context = {
-        "assigned": _page(request, _assigned(viewer.run), 100),
+        "assigned": assigned,
+        "query": query,  # an earlier run's pages keep ?run=
         "bench_rows": _bench_rows(viewer.run),
         "n_approximate": approximate_subsets(viewer.run),
         "exact_max": EXACT_MAX,
@@ -298,11 +306,9 @@ def performance_page(request: AuthenticatedHttpRequest, code: str, audience: str
     viewer = _viewer(request, code, audience)
     if viewer.run is None:
         return _render(request, viewer, "performance", {})
-    page = _page(request, _lab_codes(viewer), 50)
-    query = request.GET.copy()
-    query.pop("page", None)
+    page, query = _page(request, _lab_codes(viewer), 50)
     context = {"page_obj": page, "rows": performance(viewer.run, page.object_list),
-               "query": query.urlencode()}  # fmt: skip
+               "query": query}  # fmt: skip
     return _render(request, viewer, "performance", context)
 
 
@@ -333,14 +339,12 @@ def scores(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpR
     if viewer.run is None:
         return _render(request, viewer, "scores", {})
     form = ScoreFilterForm(request.GET, comparison=viewer.comparison, lab_codes=_lab_codes(viewer))
-    page = _page(request, run_scores(viewer.run, form.filters(), form.ordering()), 50)
+    page, query = _page(request, run_scores(viewer.run, form.filters(), form.ordering()), 50)
     own = viewer.own_code
     rows = [{"s": s, "flag_class": FLAG_CLASS.get(s.flag, ""),
              "z_flag_class": FLAG_CLASS.get(s.z_flag, ""),
              "own": s.result.submission.participant.code == own} for s in page]  # fmt: skip
-    query = request.GET.copy()
-    query.pop("page", None)
-    context = {"form": form, "page_obj": page, "rows": rows, "query": query.urlencode()}
+    context = {"form": form, "page_obj": page, "rows": rows, "query": query}
     return _render(request, viewer, "scores", context)
 
 
@@ -503,15 +507,13 @@ def compatibility(request: AuthenticatedHttpRequest, code: str, audience: str) -
     form = CompatibilityForm(request.GET, comparison=viewer.comparison,
                              points=_run_points(viewer.run))  # fmt: skip
     found, error = _matrices(viewer, form)
-    page = _page(request, found, 6)
-    query = request.GET.copy()
-    query.pop("page", None)
+    page, query = _page(request, found, 6)
     context = {
         "form": form,
         "factor": form.chosen_factor(),
         "error": error,
         "page_obj": page,
         "matrices": [_matrix_view(title, m, viewer) for title, m in page],
-        "query": query.urlencode(),
+        "query": query,
     }
     return _render(request, viewer, "compatibility", context)
