@@ -118,3 +118,66 @@ def curvilinear_records(
     enc = enc + rng.normal(0.0, encoder_noise_rad, enc.size) if encoder_noise_rad else enc
     enc_meta = {"channels": ("encoder_rad",), "fs_hz": encoder_fs}
     return mems, Record("synthetic-encoder", ("encoder_rad",), enc[None, :], enc_meta)
+
+
+def phase_records(
+    sensitivity: float = 420.0,
+    phase_deg: float = -12.5,
+    *,
+    f: float = 80.0,
+    fs: float = 1666.0,
+    a_ref: float = 10.0,
+    duration: float = 20.0,
+    offset_s: float | None = 0.0123,
+    noise_digits: float = 2.0,
+    seed: int = 0,
+) -> tuple[Record, Record]:
+    """A DUT axis (``z``, digits) whose sensitivity has the phase ``phase_deg`` against
+    the acceleration, and the reference accelerometer's record (``ref``, m/s²) started
+    ``offset_s`` earlier on the same clock (its sidecar ``trigger_offset_s``; None: no
+    common time base written): two records, as two instruments write them."""
+    rng = np.random.default_rng(seed)
+    n = round(duration * fs)
+    t_ref = np.arange(n) / fs
+    start = offset_s if offset_s is not None else 0.0123
+    t_dut = start + np.arange(n) / fs
+    w = 2 * np.pi * f
+    ref = a_ref * np.cos(w * t_ref + 0.4)
+    dut = sensitivity * a_ref * np.cos(w * t_dut + 0.4 + np.radians(phase_deg))
+    dut = dut + rng.normal(0.0, noise_digits, n)
+    meta: dict = {"channels": ("z",), "fs_hz": fs, "frequency_hz": f}
+    if offset_s is not None:
+        meta["trigger_offset_s"] = offset_s
+    ref_meta = {"channels": ("ref",), "fs_hz": fs, "frequency_hz": f}
+    return (Record("synthetic-phase-dut", ("z",), dut[None, :], meta),
+            Record("synthetic-phase-ref", ("ref",), ref[None, :], ref_meta))  # fmt: skip
+
+
+def gyro_record(
+    sensitivity_dps: float = 114.3,
+    phase_deg: float = -3.2,
+    *,
+    f: float = 2.0,
+    fs: float = 833.0,
+    angle_deg: float = 30.0,
+    duration: float = 30.0,
+    noise_digits: float = 20.0,
+    encoder_noise_rad: float = 1e-5,
+    seed: int = 0,
+) -> Record:
+    """A gyroscope axis (``gz``, digits) on the oscillating rotating table and the table's
+    encoder angle (``encoder_rad``) in one record: θ(t) = θ₀ cos(2πft), θ₀ half the peak-
+    to-peak ``angle_deg``; gz = S·(dθ/dt in °/s) shifted by ``phase_deg`` (a filter lag)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(round(duration * fs)) / fs
+    w = 2 * np.pi * f
+    theta0 = np.radians(angle_deg) / 2
+    theta = theta0 * np.cos(w * t)
+    omega0_dps = np.degrees(theta0) * w
+    # dθ/dt = −θ₀ω sin(ωt) = θ₀ω cos(ωt + 90°)
+    gz = sensitivity_dps * omega0_dps * np.cos(w * t + np.pi / 2 + np.radians(phase_deg))
+    data = np.stack([gz + rng.normal(0.0, noise_digits, t.size),
+                     theta + rng.normal(0.0, encoder_noise_rad, t.size)])  # fmt: skip
+    meta = {"channels": ("gz", "encoder_rad"), "fs_hz": fs, "frequency_hz": f,
+            "bench": "curvilinear"}  # fmt: skip
+    return Record("synthetic-gyro", ("gz", "encoder_rad"), data, meta)
