@@ -532,3 +532,86 @@ class Enrolment(models.Model):
 
     def __str__(self) -> str:
         return f"{self.laboratory} → {self.comparison} ({self.status})"
+
+
+class KitSlot(models.Model):
+    """A participant's turn with a kit (docs/domain.md §15): the ``position``-th holder of
+    the kit in its loop, from ``starts_on`` to ``ends_on``. The pilot has several slots
+    on every kit (before, between, after); a linking laboratory has slots on two kits."""
+
+    kit = models.ForeignKey("proficiency.Kit", on_delete=models.CASCADE, related_name="slots")
+    participant = models.ForeignKey(Participant, on_delete=models.CASCADE, related_name="kit_slots")
+    position = models.PositiveIntegerField()
+    starts_on = models.DateField()
+    ends_on = models.DateField()
+
+    class Meta:
+        ordering = ["kit", "position"]
+        constraints = [
+            models.UniqueConstraint(fields=["kit", "position"], name="kit_slot_position"),
+            models.CheckConstraint(
+                condition=Q(ends_on__gte=models.F("starts_on")), name="kit_slot_dates"
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.kit} #{self.position}: {self.participant.code}"
+
+
+class Handover(models.Model):
+    """A kit passing from one holder to the next: dispatched by the sender, received by the
+    receiver with the condition it arrived in. ``from_slot`` None: sent by the provider;
+    ``to_slot`` None: returned to the provider."""
+
+    class Condition(models.TextChoices):
+        GOOD = "good", "Complete and undamaged"
+        DAMAGED = "damaged", "Damaged"
+        INCOMPLETE = "incomplete", "Incomplete"
+
+    kit = models.ForeignKey("proficiency.Kit", on_delete=models.CASCADE, related_name="handovers")
+    from_slot = models.ForeignKey(
+        KitSlot, null=True, blank=True, on_delete=models.CASCADE, related_name="sent"
+    )
+    to_slot = models.ForeignKey(
+        KitSlot, null=True, blank=True, on_delete=models.CASCADE, related_name="received"
+    )
+    dispatched_at = models.DateTimeField()
+    dispatched_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL,
+        related_name="kits_dispatched",
+    )  # fmt: skip
+    carrier_note = models.CharField(max_length=500, blank=True, help_text="Carrier, tracking.")
+    received_at = models.DateTimeField(null=True, blank=True)
+    received_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL,
+        related_name="kits_received",
+    )  # fmt: skip
+    condition = models.CharField(max_length=10, choices=Condition.choices, blank=True)
+    condition_note = models.CharField(max_length=1000, blank=True)
+    photo = models.FileField(upload_to="handovers/%Y/", blank=True)
+
+    class Meta:
+        ordering = ["kit", "dispatched_at", "pk"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["to_slot"],
+                condition=Q(to_slot__isnull=False),
+                name="handover_one_arrival",
+            ),
+            models.UniqueConstraint(
+                fields=["from_slot"],
+                condition=Q(from_slot__isnull=False),
+                name="handover_one_departure",
+            ),
+            models.CheckConstraint(
+                condition=Q(received_at__isnull=True) | ~Q(condition=""),
+                name="handover_received_condition",
+            ),
+            models.CheckConstraint(
+                condition=Q(condition__in=["", "good", "damaged", "incomplete"]),
+                name="handover_condition_valid",
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.kit}: {self.from_slot_id or 'provider'} → {self.to_slot_id or 'provider'}"

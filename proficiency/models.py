@@ -318,3 +318,38 @@ class ReferenceValue(models.Model):
 
     def __str__(self) -> str:
         return f"{self.measurement_point}: {self.value:g} ({self.get_source_display()})"
+
+
+class Kit(models.Model):
+    """One travelling set of the round's devices (docs/domain.md §15): a round with many
+    participants circulates several identical kits, each in its own loop."""
+
+    comparison = models.ForeignKey(Comparison, on_delete=models.CASCADE, related_name="kits")
+    name = models.CharField(max_length=40, help_text="e.g. Kit A")
+    note = models.CharField(max_length=500, blank=True)
+
+    class Meta:
+        ordering = ["comparison", "name"]
+        constraints = [
+            models.UniqueConstraint(fields=["comparison", "name"], name="kit_unique_name"),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.name} ({self.comparison.code})"
+
+
+class KitItem(models.Model):
+    """The copy of one of the round's devices in a kit, by its serial number."""
+
+    kit = models.ForeignKey(Kit, on_delete=models.CASCADE, related_name="items")
+    device = models.ForeignKey(Device, on_delete=models.CASCADE, related_name="kit_items")
+    serial = models.CharField(max_length=80)
+
+    class Meta:
+        ordering = ["kit", "device__name"]
+        constraints = [
+            models.UniqueConstraint(fields=["kit", "device"], name="kit_item_once"),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.device.name} #{self.serial} in {self.kit.name}"

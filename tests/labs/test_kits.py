@@ -1,0 +1,173 @@
+"""Kits, their circulation plan and hand-overs (docs/domain.md §15): rows in the database,
+the rules of the loop, retried requests, and what each audience is shown."""
+
+from __future__ import annotations
+
+import datetime as dt
+import threading
+
+import pytest
+from django.db import connection
+
+from common.errors import StateConflict, ValidationFailed
+from labs.kits import (
+    SlotPlan,
+    circulation_set,
+    circulation_status,
+    handover_dispatch,
+    handover_receive,
+    kit_create,
+    own_circulation,
+)
+from labs.models import Handover, KitSlot
+from proficiency.models import Kit, KitItem
+from tests.factories import ComparisonFactory, DeviceFactory, ParticipantFactory, UserFactory
+
+D = dt.date
+
+
+@pytest.fixture
+def round_(db):
+    c = ComparisonFactory.create()
+    devices = [DeviceFactory.create(comparison=c, name=f"MEMS {i}") for i in (1, 2)]
+    pilot, *labs = (ParticipantFactory.create(comparison=c) for _ in range(4))
+    kit = kit_create(comparison_id=c.pk, name="Kit A",
+                     serials={devices[0]: "A-001", devices[1]: "A-002"})  # fmt: skip
+    plan = [SlotPlan(pilot, D(2027, 1, 4), D(2027, 1, 8)),
+            SlotPlan(labs[0], D(2027, 1, 11), D(2027, 1, 22)),
+            SlotPlan(labs[1], D(2027, 1, 25), D(2027, 2, 5)),
+            SlotPlan(pilot, D(2027, 2, 8), D(2027, 2, 12))]  # fmt: skip
+    circulation_set(kit=kit, plan=plan)
+    return c, kit, pilot, labs, devices
+
+
+def test_a_kit_holds_the_rounds_devices_by_serial(round_):
+    c, kit, _, _, devices = round_
+    assert list(KitItem.objects.filter(kit=kit).values_list("device__name", "serial")) == [
+        ("MEMS 1", "A-001"), ("MEMS 2", "A-002")]  # fmt: skip
+    other = DeviceFactory.create(comparison=ComparisonFactory.create(), name="Stranger")
+    with pytest.raises(ValidationFailed, match="Stranger is not a device of this round"):
+        kit_create(comparison_id=c.pk, name="Kit B", serials={other: "X"})
+    assert not Kit.objects.filter(name="Kit B").exists()  # nothing stored half-way
+    with pytest.raises(ValidationFailed, match="already has a kit named Kit A"):
+        kit_create(comparison_id=c.pk, name="Kit A", serials={devices[0]: "X"})
+
+
+def test_the_plan_is_the_loop_in_order_and_overlaps_are_refused_row_by_row(round_):
+    _, kit, pilot, labs, _ = round_
+    assert list(KitSlot.objects.filter(kit=kit).values_list("position", "participant")) == [
+        (1, pilot.pk), (2, labs[0].pk), (3, labs[1].pk), (4, pilot.pk)]  # fmt: skip
+    bad = [SlotPlan(labs[0], D(2027, 1, 10), D(2027, 1, 20)),
+           SlotPlan(labs[1], D(2027, 1, 15), D(2027, 1, 12))]  # fmt: skip
+    with pytest.raises(ValidationFailed) as caught:
+        circulation_set(kit=kit, plan=bad)
+    assert [(e["row"], e["field"]) for e in caught.value.errors] == [
+        (2, "ends_on"), (2, "starts_on")]  # fmt: skip
+    assert KitSlot.objects.filter(kit=kit).count() == 4  # the old plan stands
+    stranger = ParticipantFactory.create()
+    with pytest.raises(ValidationFailed, match="not valid") as caught:
+        circulation_set(kit=kit, plan=[SlotPlan(stranger, D(2027, 1, 1), D(2027, 1, 2))])
+    assert caught.value.errors[0]["field"] == "participant"
+
+
+def test_the_kit_goes_round_the_loop_and_back_to_the_provider(round_):
+    kit = round_[1]
+    slots = list(KitSlot.objects.filter(kit=kit).order_by("position"))
+    coordinator, receiver = UserFactory.create(), UserFactory.create()
+    h = handover_dispatch(kit=kit, from_slot=None, user=coordinator)
+    assert h.to_slot == slots[0]
+    with pytest.raises(StateConflict, match="not been received"):
+        handover_dispatch(kit=kit, from_slot=slots[0], user=receiver)
+    for i, slot in enumerate(slots):
+        arrival = Handover.objects.get(to_slot=slot)
+        handover_receive(handover=arrival, user=receiver, condition="good")
+        out = handover_dispatch(kit=kit, from_slot=slot, user=receiver, carrier_note="DHL 123")
+        assert out.to_slot == (slots[i + 1] if i + 1 < len(slots) else None)
+    back = Handover.objects.get(kit=kit, to_slot__isnull=True)
+    assert back.from_slot == slots[-1]
+    assert Handover.objects.filter(kit=kit).count() == 5
+    with pytest.raises(StateConflict, match="already circulating"):
+        circulation_set(kit=kit, plan=[])
+
+
+def test_a_retried_dispatch_or_receipt_answers_the_same_row(round_):
+    _, kit, *_ = round_
+    first = handover_dispatch(kit=kit, from_slot=None, user=None)
+    assert handover_dispatch(kit=kit, from_slot=None, user=None).pk == first.pk
+    got = handover_receive(handover=first, user=None, condition="damaged", note="cable torn")
+    again = handover_receive(handover=first, user=None, condition="damaged", note="cable torn")
+    assert again.pk == got.pk and again.received_at == got.received_at
+    with pytest.raises(StateConflict, match="already logged"):
+        handover_receive(handover=first, user=None, condition="good")
+    assert Handover.objects.get(pk=first.pk).condition == "damaged"
+
+
+def test_a_damaged_arrival_needs_a_note_and_a_condition_from_the_list(round_):
+    _, kit, *_ = round_
+    h = handover_dispatch(kit=kit, from_slot=None, user=None)
+    with pytest.raises(ValidationFailed, match="what is damaged"):
+        handover_receive(handover=h, user=None, condition="damaged")
+    with pytest.raises(ValidationFailed, match="must be one of"):
+        handover_receive(handover=h, user=None, condition="fine")
+    with pytest.raises(ValidationFailed, match="control characters"):
+        handover_receive(handover=h, user=None, condition="incomplete", note="box\x00open")
+    assert Handover.objects.get(pk=h.pk).received_at is None
+
+
+def test_a_laboratory_sees_its_own_slot_only(round_, django_assert_max_num_queries):
+    _, kit, pilot, labs, _ = round_
+    h = handover_dispatch(kit=kit, from_slot=None, user=None)
+    handover_receive(handover=h, user=None, condition="good")
+    first = KitSlot.objects.get(kit=kit, position=1)
+    handover_dispatch(kit=kit, from_slot=first, user=None)
+    with django_assert_max_num_queries(3):
+        mine = own_circulation(labs[0])
+    assert [(o.slot.position, o.may_receive, o.may_dispatch) for o in mine] == [(2, True, False)]
+    assert [i.serial for i in mine[0].items] == ["A-001", "A-002"]
+    # the pilot has two slots, the second not reached yet
+    assert [(o.slot.position, o.arrival is not None) for o in own_circulation(pilot)] == [
+        (1, True), (4, False)]  # fmt: skip
+    assert own_circulation(ParticipantFactory.create()) == []
+
+
+def test_the_coordinator_sees_late_overdue_and_damaged(round_):
+    _, kit, *_ = round_
+    h = handover_dispatch(kit=kit, from_slot=None, user=None)
+    handover_receive(handover=h, user=None, condition="good",
+                     at=dt.datetime(2027, 1, 6, 9, tzinfo=dt.UTC))  # fmt: skip
+    first = KitSlot.objects.get(kit=kit, position=1)
+    out = handover_dispatch(kit=kit, from_slot=first, user=None)
+    handover_receive(handover=out, user=None, condition="incomplete", note="MEMS 2 missing",
+                     at=dt.datetime(2027, 1, 11, 8, tzinfo=dt.UTC))  # fmt: skip
+    status = circulation_status(kit, today=D(2027, 1, 27))
+    assert [(s.slot.position, s.late, s.overdue, s.damaged) for s in status] == [
+        (1, True, False, False),   # arrived on the 6th for a slot from the 4th
+        (2, False, True, True),    # on time, incomplete, not sent on by the 22nd
+        (3, True, False, False),   # should have arrived by the 25th
+        (4, False, False, False),
+    ]  # fmt: skip
+
+
+@pytest.mark.django_db(transaction=True)
+def test_two_dispatches_at_once_make_one_handover(needs_postgres):
+    c = ComparisonFactory.create()
+    d = DeviceFactory.create(comparison=c)
+    p = ParticipantFactory.create(comparison=c)
+    kit = kit_create(comparison_id=c.pk, name="Kit A", serials={d: "1"})
+    circulation_set(kit=kit, plan=[SlotPlan(p, D(2027, 1, 1), D(2027, 1, 2))])
+    barrier, got = threading.Barrier(2), []
+
+    def send():
+        try:
+            barrier.wait()
+            got.append(handover_dispatch(kit=kit, from_slot=None, user=None).pk)
+        finally:
+            connection.close()
+
+    threads = [threading.Thread(target=send) for _ in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(got) == 2 and got[0] == got[1]
+    assert Handover.objects.filter(kit=kit).count() == 1
