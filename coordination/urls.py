@@ -4,7 +4,7 @@ under ``/results/`` (both in the ``coordinator`` namespace; analysis pages from
 
 from django.urls import include, path
 
-from coordination import views
+from coordination import kit_views, views
 
 app_name = "coordinator"
 
@@ -44,5 +44,10 @@ urlpatterns = [
     ),
     path(C + "review/results/<int:pk>/check/", views.result_check, name="check"),
     path(C + "raw-data/", views.raw_review, name="raw_review"),
+    path(C + "kits/", kit_views.kits_page, name="kits"),
+    path(C + "kits/new/", kit_views.kit_new, name="kit_new"),
+    path(C + "kits/<int:pk>/plan/", kit_views.kit_plan, name="kit_plan"),
+    path(C + "kits/<int:pk>/dispatch/", kit_views.kit_dispatch, name="kit_dispatch"),
+    path(C + "kits/<int:pk>/returned/", kit_views.kit_returned, name="kit_returned"),
     path("", include("analysis.urls")),
 ]

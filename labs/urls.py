@@ -2,7 +2,7 @@
 
 from django.urls import path
 
-from labs import views
+from labs import kit_views, views
 
 app_name = "labs"
 
@@ -36,6 +36,17 @@ urlpatterns = [
         "lab/comparisons/<slug:code>/raw-data/<int:pk>/",
         views.raw_record,
         name="raw_record",
+    ),
+    path("lab/comparisons/<slug:code>/kit/", kit_views.kit_page, name="kits"),
+    path(
+        "lab/comparisons/<slug:code>/kit/<int:pk>/received/",
+        kit_views.kit_received,
+        name="kit_received",
+    ),
+    path(
+        "lab/comparisons/<slug:code>/kit/<int:pk>/dispatched/",
+        kit_views.kit_dispatched,
+        name="kit_dispatched",
     ),
     path("lab/api-keys/", views.api_keys_index, name="api_keys_index"),
     path("lab/<int:lab_pk>/api-keys/", views.api_keys, name="api_keys"),

@@ -184,6 +184,7 @@ def comparison_detail(request: AuthenticatedHttpRequest, code: str) -> HttpRespo
         "scope": scope_text(participant),
         "latest": participant_submissions(participant).first(),
         "closed_reason": _closed_reason(comparison),
+        "has_kit": participant.kit_slots.exists(),
     }
     return render(request, "labs/comparison.html", context)
 

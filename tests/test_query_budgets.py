@@ -38,7 +38,8 @@ C1 = "SEC-C1"
 ROUTES: list[tuple[str, str, int, str]] = [
     # laboratory web pages
     ("a_staff", "/lab/", 9, ""),
-    ("a_staff", f"/lab/comparisons/{C1}/", 13, ""),  # + the inbox badge and the scope
+    ("a_staff", f"/lab/comparisons/{C1}/", 14, ""),  # + the inbox badge, the scope, a kit?
+    ("a_staff", f"/lab/comparisons/{C1}/kit/", 10, ""),
     ("a_staff", f"/lab/comparisons/{C1}/results/", 13, ""),
     ("a_staff", f"/lab/comparisons/{C1}/submissions/", 10, ""),
     ("a_staff", f"/lab/comparisons/{C1}/raw-data/", 13, ""),
@@ -63,6 +64,7 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("coord1", f"/coordinator/{C1}/scores/", 19, ""),
     ("coord1", f"/coordinator/{C1}/performance/", 19, ""),
     ("coord1", f"/coordinator/{C1}/raw-data/", 10, ""),
+    ("coord1", f"/coordinator/{C1}/kits/", 10, ""),
     ("coord1", f"/reports/{C1}/", 11, ""),
     # coordinator API (session)
     ("coord1", f"/api/v1/comparisons/{C1}/scores/", 10, ""),

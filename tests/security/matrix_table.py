@@ -58,6 +58,11 @@ PK = {
     # the world holds no application either: any pk is nobody's -> 404 (or the coordinator
     # pages' 404 for the comparison first); tests/labs/test_enrolment.py checks real ones
     "lab/applications/<int:pk>/withdraw/": "result",
+    "coordinator/<slug:code>/kits/<int:pk>/plan/": "result",
+    "coordinator/<slug:code>/kits/<int:pk>/dispatch/": "result",
+    "coordinator/<slug:code>/kits/<int:pk>/returned/": "result",
+    "lab/comparisons/<slug:code>/kit/<int:pk>/received/": "result",
+    "lab/comparisons/<slug:code>/kit/<int:pk>/dispatched/": "result",
     "coordinator/<slug:code>/applications/<int:pk>/accept/": "result",
     "coordinator/<slug:code>/applications/<int:pk>/decline/": "result",
     "api/v1/comparisons/<slug:code>/applications/<int:pk>/accept/": "result",
@@ -518,6 +523,40 @@ TABLE: dict[str, Row] = {
     "coordinator/<slug:code>/raw-data/": Row(
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
+    ),
+    # kits (docs/domain.md §15): the world holds no kit or slot, so any pk is nobody's ->
+    # 404; tests/labs/test_kit_pages.py checks real ones persona by persona
+    "coordinator/<slug:code>/kits/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/kits/new/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 400 404 302 302 400",
+    ),
+    "coordinator/<slug:code>/kits/<int:pk>/plan/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
+    "coordinator/<slug:code>/kits/<int:pk>/dispatch/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
+    "coordinator/<slug:code>/kits/<int:pk>/returned/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
+    "lab/comparisons/<slug:code>/kit/": Row(
+        get="302 200 200 200 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "lab/comparisons/<slug:code>/kit/<int:pk>/received/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
+    "lab/comparisons/<slug:code>/kit/<int:pk>/dispatched/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
     ),
     # C1 takes no applications but is visible to its labs and coordinators: GET lists their
     # own (coordinators all); POST: 409 for lab A's manager and key (it takes part), 403 for
