@@ -97,11 +97,13 @@ def _page(request: AuthenticatedHttpRequest, comparison: Comparison, *, status: 
             "circulating": Handover.objects.filter(kit=kit).exists(),
             "returned": Handover.objects.filter(kit=kit, to_slot__isnull=True,
                                                 from_slot__isnull=False).first(),
+            "drift": kits.kit_drift(kit),
         })  # fmt: skip
     context = {
         "comparison": comparison, "kits": rows, "plan_help": PLAN_HELP,
         "kit_form": kit_form or KitForm(devices=devices), "plan_errors": plan_errors or {},
         "conditions": Handover.Condition.choices,
+        "measurement_header": ",".join(kits.MEASUREMENT_COLUMNS),
     }  # fmt: skip
     return render(request, "coordinator/kits.html", context, status=status)
 
@@ -180,4 +182,23 @@ def kit_returned(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpR
         return _page(request, comparison, status=exc.status_code,
                      plan_errors={kit.pk: [exc.message]})  # fmt: skip
     messages.success(request, f"The return of {kit.name} is logged.")
+    return redirect("coordinator:kits", code=code)
+
+
+@login_required
+@require_POST
+def kit_measurements(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
+    """Replace the pilot's repeat measurements of a kit (CSV), from which its drift is judged."""
+    comparison = coordinated(request, code)
+    kit = _kit(comparison, pk)
+    text = request.POST.get("measurements", "")
+    try:
+        if len(text) > 10_000_000:
+            raise ValidationFailed("Paste at most 10 MB of measurements.")
+        n = kits.kit_measurements_replace(kit=kit, text=text)
+    except ApplicationError as exc:
+        lines = [exc.message] + [f"line {e['row']}: {e['message']}" if e.get("row") else
+                                 e["message"] for e in exc.errors]  # fmt: skip
+        return _page(request, comparison, status=400, plan_errors={kit.pk: lines})
+    messages.success(request, f"{n} pilot measurement{'s' if n != 1 else ''} of {kit.name} stored.")
     return redirect("coordinator:kits", code=code)

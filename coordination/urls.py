@@ -49,5 +49,6 @@ urlpatterns = [
     path(C + "kits/<int:pk>/plan/", kit_views.kit_plan, name="kit_plan"),
     path(C + "kits/<int:pk>/dispatch/", kit_views.kit_dispatch, name="kit_dispatch"),
     path(C + "kits/<int:pk>/returned/", kit_views.kit_returned, name="kit_returned"),
+    path(C + "kits/<int:pk>/measurements/", kit_views.kit_measurements, name="kit_measurements"),
     path("", include("analysis.urls")),
 ]

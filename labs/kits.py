@@ -9,21 +9,33 @@ coordinator sees the whole plan with what is late, overdue or arrived damaged.
 
 from __future__ import annotations
 
+import csv
 import datetime as dt
+import io
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
 from django.contrib.auth.models import User
 from django.core.files.base import File
 from django.db import IntegrityError, transaction
 from django.utils import timezone
 
+from analysis.core.drift import DriftFit, drift_fit
+from analysis.core.groups import CoreInputError, Groups
 from common.errors import StateConflict, ValidationFailed
-from labs.models import Handover, KitSlot, Participant
+from common.points import PointKey, point_label
+from labs.models import Handover, KitMeasurement, KitSlot, Participant
+from labs.selectors import comparison_table
 from proficiency.models import Device, Kit, KitItem
 
 MAX_SLOTS = 1000
 MAX_TEXT = 1000
+MAX_MEASUREMENTS = 100_000
+#: the columns of a kit's pilot measurements, in order (docs/domain.md §15)
+MEASUREMENT_COLUMNS = ("device", "axis", "frequency_hz", "bench", "direction", "measured_on",
+                       "sensitivity", "expanded_uncertainty", "coverage_factor")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -243,3 +255,131 @@ def circulation_status(kit: Kit, today: dt.date | None = None) -> list[SlotStatu
                                                Handover.Condition.INCOMPLETE)),
         ))  # fmt: skip
     return out
+
+
+# --- the pilot's repeats and the kit's drift -------------------------------------------------
+
+
+def _finite(text: str, what: str, *, positive: bool = False) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"{what} must be a number, got {text[:20]!r}") from None
+    if not math.isfinite(value) or (positive and not value > 0):
+        raise ValueError(f"{what} must be finite{' and > 0' if positive else ''}")
+    return value
+
+
+def _measurement(kit: Kit, row: list[str], points: dict[PointKey, int]) -> KitMeasurement:
+    if len(row) not in (8, 9):
+        raise ValueError(f"{len(row)} fields; give {', '.join(MEASUREMENT_COLUMNS)} (k optional)")
+    device, axis, freq, bench, direction, day, value, big_u, *k = (c.strip() for c in row)
+    key = PointKey(device, axis, _finite(freq, "frequency_hz", positive=True), bench, direction)
+    point = points.get(key)
+    if point is None:
+        raise ValueError(f"{point_label(key)} is not a measurement point of this round")
+    try:
+        measured_on = dt.date.fromisoformat(day)
+    except ValueError:
+        raise ValueError(f"measured_on must be a date YYYY-MM-DD, got {day[:20]!r}") from None
+    return KitMeasurement(
+        kit=kit, measurement_point_id=point, measured_on=measured_on,
+        value=_finite(value, "sensitivity"),
+        expanded_uncertainty=_finite(big_u, "expanded_uncertainty", positive=True),
+        coverage_factor=_finite(k[0], "coverage_factor", positive=True) if k and k[0] else 2.0,
+    )  # fmt: skip
+
+
+@transaction.atomic
+def kit_measurements_replace(*, kit: Kit, text: str) -> int:
+    """Replace the pilot's measurements of ``kit`` with the CSV ``text`` (a header line
+    naming :data:`MEASUREMENT_COLUMNS`, then one line per measurement); every bad line is
+    named and nothing is stored unless all are good."""
+    lines = list(csv.reader(io.StringIO(text)))
+    rows = [r for r in lines[1:] if any(c.strip() for c in r)]
+    if not lines or [c.strip() for c in lines[0]][:8] != list(MEASUREMENT_COLUMNS[:8]):
+        raise ValidationFailed(
+            f"The first line must name the columns: {', '.join(MEASUREMENT_COLUMNS)}."
+        )
+    if len(rows) > MAX_MEASUREMENTS:
+        raise ValidationFailed(f"At most {MAX_MEASUREMENTS} measurements per kit.")
+    points = comparison_table(kit.comparison).point_ids
+    found, errors, seen = [], [], set()
+    for n, row in enumerate(rows, start=2):
+        try:
+            m = _measurement(kit, row, points)
+        except ValueError as exc:
+            errors.append({"row": n, "message": str(exc)})
+            continue
+        if (m.measurement_point_id, m.measured_on) in seen:
+            errors.append({"row": n, "message": "a second measurement of this point that day"})
+        seen.add((m.measurement_point_id, m.measured_on))
+        found.append(m)
+    if errors:
+        raise ValidationFailed(f"The pilot's measurements of {kit.name} have errors.",
+                               errors=errors[:100])  # fmt: skip
+    KitMeasurement.objects.filter(kit=kit).delete()
+    KitMeasurement.objects.bulk_create(found, batch_size=5000)
+    return len(found)
+
+
+@dataclass(frozen=True)
+class DriftRow:
+    """One point of a kit: the pilot's repeats, the model chosen and what it means for the
+    loop (the largest u_stab at a participant's slot, were the drift not corrected)."""
+
+    label: str
+    n: int
+    first: dt.date
+    last: dt.date
+    model: str
+    value: float
+    slope_per_day: float
+    u_slope: float
+    p_value: float
+    u_stab_max: float
+
+
+def _days(dates: Sequence[dt.date]) -> np.ndarray:
+    return np.array([d.toordinal() for d in dates], dtype=np.float64)
+
+
+def kit_drift(kit: Kit) -> tuple[list[DriftRow], list[str]]:
+    """The drift of every point the pilot measured at least twice on two dates
+    (analysis.core.drift; u of a change over time = U/k of each repeat), and notes for
+    the points it could not judge."""
+    rows = list(KitMeasurement.objects.filter(kit=kit).select_related("measurement_point__device")
+                .order_by("measurement_point", "measured_on"))  # fmt: skip
+    by_point: dict[int, list[KitMeasurement]] = {}
+    for m in rows:
+        by_point.setdefault(m.measurement_point_id, []).append(m)
+    notes, usable = [], []
+    for series in by_point.values():
+        label = str(series[0].measurement_point)
+        if len({m.measured_on for m in series}) < 2:
+            notes.append(f"{label}: measured on one date only, no drift can be judged")
+        else:
+            usable.append(series)
+    if not usable:
+        return [], notes
+    flat = [m for series in usable for m in series]
+    groups = Groups.from_index(np.repeat(np.arange(len(usable)), [len(s) for s in usable]))
+    try:
+        u = [m.expanded_uncertainty / m.coverage_factor for m in flat]
+        days = _days([m.measured_on for m in flat])
+        fit: DriftFit = drift_fit(days, [m.value for m in flat], groups, u)
+    except CoreInputError as exc:
+        raise ValidationFailed(str(exc)) from None
+    others = KitSlot.objects.filter(kit=kit).exclude(participant__is_reference=True)
+    mids = [s.starts_on + (s.ends_on - s.starts_on) / 2 for s in others]
+    out = []
+    for g, series in enumerate(usable):
+        u_stab = fit.u_stab(np.full(len(mids), g), _days(mids)) if mids else np.zeros(1)
+        out.append(DriftRow(
+            label=str(series[0].measurement_point), n=int(fit.n[g]),
+            first=series[0].measured_on, last=series[-1].measured_on, model=fit.model[g],
+            value=float(fit.value[g]), slope_per_day=float(fit.slope[g]),
+            u_slope=float(fit.u_slope[g]), p_value=float(fit.p_value[g]),
+            u_stab_max=float(u_stab.max()),
+        ))  # fmt: skip
+    return out, notes

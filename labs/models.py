@@ -615,3 +615,36 @@ class Handover(models.Model):
 
     def __str__(self) -> str:
         return f"{self.kit}: {self.from_slot_id or 'provider'} → {self.to_slot_id or 'provider'}"
+
+
+class KitMeasurement(models.Model):
+    """The pilot's measurement of one kit at one point on one date (docs/domain.md §13, §15):
+    the repeats over the circulation from which the kit's drift is judged."""
+
+    kit = models.ForeignKey(
+        "proficiency.Kit", on_delete=models.CASCADE, related_name="measurements"
+    )
+    measurement_point = models.ForeignKey(
+        "proficiency.MeasurementPoint", on_delete=models.CASCADE, related_name="kit_measurements"
+    )
+    measured_on = models.DateField()
+    value = models.FloatField()
+    expanded_uncertainty = models.FloatField(
+        help_text="U for a change over time (the pilot's reproducibility), k as given"
+    )
+    coverage_factor = models.FloatField(default=2.0)
+
+    class Meta:
+        ordering = ["kit", "measurement_point", "measured_on"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["kit", "measurement_point", "measured_on"], name="kit_measurement_once"
+            ),
+            models.CheckConstraint(
+                condition=Q(expanded_uncertainty__gt=0) & Q(coverage_factor__gt=0),
+                name="kit_measurement_u_pos",
+            ),
+        ]
+
+    def __str__(self) -> str:
+        return f"{self.kit} {self.measurement_point_id} on {self.measured_on}: {self.value:g}"

@@ -103,3 +103,27 @@ def test_the_kit_page_without_a_kit_and_another_rounds_coordinator(db):
     assert other.get(f"/coordinator/{c.code}/kits/").status_code == 404
     assert other.post(f"/coordinator/{c.code}/kits/new/", {"name": "X"}).status_code == 404
     assert not Kit.objects.exists()
+
+
+def test_the_coordinator_stores_the_pilots_repeats_and_reads_the_drift(db):
+    from tests.factories import MeasurementPointFactory
+
+    c, devices, _, _, coord = _world(db)
+    MeasurementPointFactory.create(device=devices[0], frequency_hz=5.0)
+    base = f"/coordinator/{c.code}/kits/"
+    coord.post(base + "new/", {"name": "Kit A", f"serial_{devices[0].pk}": "SN-1"})
+    kit = Kit.objects.get(comparison=c)
+    header = "device,axis,frequency_hz,bench,direction,measured_on,sensitivity,expanded_uncertainty"
+    wrong = header + "\nMEMS 9,X,5,linear,vertical,2027-01-04,1,0.1"
+    bad = coord.post(f"{base}{kit.pk}/measurements/", {"measurements": wrong})
+    assert bad.status_code == 400
+    assert (
+        "line 2: MEMS 9, X, 5 Hz, linear vertical is not a measurement point"
+        in bad.content.decode()
+    )
+    days = ("2027-01-04", "2027-02-01", "2027-03-01", "2027-03-29")
+    lines = [f"MEMS 1,X,5,linear,vertical,{d},{418 + 0.5 * i},0.02" for i, d in enumerate(days)]
+    r = coord.post(f"{base}{kit.pk}/measurements/", {"measurements": "\n".join([header, *lines])})
+    assert r.status_code == 302
+    page = coord.get(base).content.decode()
+    assert "drifting</span>" in page and "4 Jan 2027 – 29 Mar 2027" in page

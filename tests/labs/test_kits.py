@@ -6,6 +6,7 @@ from __future__ import annotations
 import datetime as dt
 import threading
 
+import numpy as np
 import pytest
 from django.db import connection
 
@@ -17,9 +18,11 @@ from labs.kits import (
     handover_dispatch,
     handover_receive,
     kit_create,
+    kit_drift,
+    kit_measurements_replace,
     own_circulation,
 )
-from labs.models import Handover, KitSlot
+from labs.models import Handover, KitMeasurement, KitSlot
 from proficiency.models import Kit, KitItem
 from tests.factories import ComparisonFactory, DeviceFactory, ParticipantFactory, UserFactory
 
@@ -30,7 +33,7 @@ D = dt.date
 def round_(db):
     c = ComparisonFactory.create()
     devices = [DeviceFactory.create(comparison=c, name=f"MEMS {i}") for i in (1, 2)]
-    pilot, *labs = (ParticipantFactory.create(comparison=c) for _ in range(4))
+    pilot, *labs = (ParticipantFactory.create(comparison=c, is_reference=i == 0) for i in range(4))
     kit = kit_create(comparison_id=c.pk, name="Kit A",
                      serials={devices[0]: "A-001", devices[1]: "A-002"})  # fmt: skip
     plan = [SlotPlan(pilot, D(2027, 1, 4), D(2027, 1, 8)),
@@ -171,3 +174,57 @@ def test_two_dispatches_at_once_make_one_handover(needs_postgres):
         t.join()
     assert len(got) == 2 and got[0] == got[1]
     assert Handover.objects.filter(kit=kit).count() == 1
+
+
+HEADER = "device,axis,frequency_hz,bench,direction,measured_on,sensitivity,expanded_uncertainty\n"
+
+
+def _points(c, device):
+    from tests.factories import MeasurementPointFactory
+
+    return [MeasurementPointFactory.create(device=device, frequency_hz=f) for f in (5.0, 10.0)]
+
+
+def test_the_pilots_repeats_give_each_points_drift(round_):
+    """MEMS 1 at 5 Hz drifts by 0.01 per day; at 10 Hz it scatters about a constant."""
+    c, kit, _, _, devices = round_
+    _points(c, devices[0])
+    days = [D(2027, 1, 4), D(2027, 1, 25), D(2027, 2, 15), D(2027, 3, 8)]
+    drift = [418.0 + 0.01 * (d - days[0]).days for d in days]
+    flat = [418.3, 418.28, 418.31, 418.29]
+    lines = [f"MEMS 1,X,5,linear,vertical,{d},{v},0.01" for d, v in zip(days, drift, strict=True)]
+    lines += [f"MEMS 1,X,10,linear,vertical,{d},{v},0.04" for d, v in zip(days, flat, strict=True)]
+    assert kit_measurements_replace(kit=kit, text=HEADER + "\n".join(lines)) == 8
+    rows, notes = kit_drift(kit)
+    assert notes == [] and [r.model for r in rows] == ["linear", "constant"]
+    t = np.array([(d - days[0]).days for d in days], dtype=float)
+    slope = np.polyfit(t, drift, 1, w=np.full(4, 1 / 0.005))[0]
+    assert rows[0].slope_per_day == pytest.approx(slope) == pytest.approx(0.01)
+    # the loop's non-pilot slots' midpoints: 16 Jan and 30 Jan; t̄ = 31.5 days after 4 Jan
+    mid = (D(2027, 1, 16) - days[0]).days
+    assert rows[0].u_stab_max == pytest.approx(abs(0.01 * (mid - 31.5)) / np.sqrt(3))
+    assert rows[1].u_stab_max == 0.0 and rows[1].value == pytest.approx(np.mean(flat))
+
+
+def test_bad_pilot_lines_are_named_and_nothing_is_stored(round_):
+    c, kit, _, _, devices = round_
+    _points(c, devices[0])
+    text = HEADER + "MEMS 1,X,5,linear,vertical,2027-01-04,418.1,0.02\n" \
+        "MEMS 1,X,7,linear,vertical,2027-01-04,418.1,0.02\n" \
+        "MEMS 1,X,5,linear,vertical,Jan 5,418.1,0.02\n" \
+        "MEMS 1,X,5,linear,vertical,2027-01-06,nan,0.02\n"  # fmt: skip
+    with pytest.raises(ValidationFailed) as caught:
+        kit_measurements_replace(kit=kit, text=text)
+    assert [(e["row"], e["message"][:30]) for e in caught.value.errors] == [
+        (3, "MEMS 1, X, 7 Hz, linear vertic"), (4, "measured_on must be a date YYY"),
+        (5, "sensitivity must be finite")]  # fmt: skip
+    assert not KitMeasurement.objects.exists()
+    with pytest.raises(ValidationFailed, match="first line must name the columns"):
+        kit_measurements_replace(kit=kit, text="a,b\n1,2")
+    kit_measurements_replace(
+        kit=kit, text=HEADER + "MEMS 1,X,5,linear,vertical,2027-01-04,418.1,0.02"
+    )
+    assert kit_drift(kit) == (
+        [],
+        ["MEMS 1, X, 5 Hz, linear vertical: measured on one date only, no drift can be judged"],
+    )

@@ -61,6 +61,7 @@ PK = {
     "coordinator/<slug:code>/kits/<int:pk>/plan/": "result",
     "coordinator/<slug:code>/kits/<int:pk>/dispatch/": "result",
     "coordinator/<slug:code>/kits/<int:pk>/returned/": "result",
+    "coordinator/<slug:code>/kits/<int:pk>/measurements/": "result",
     "lab/comparisons/<slug:code>/kit/<int:pk>/received/": "result",
     "lab/comparisons/<slug:code>/kit/<int:pk>/dispatched/": "result",
     "coordinator/<slug:code>/applications/<int:pk>/accept/": "result",
@@ -539,6 +540,10 @@ TABLE: dict[str, Row] = {
         post="302 404 404 404 404 404 302 302 404",
     ),
     "coordinator/<slug:code>/kits/<int:pk>/dispatch/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
+    "coordinator/<slug:code>/kits/<int:pk>/measurements/": Row(
         get="302 405 405 405 405 405 302 302 405",
         post="302 404 404 404 404 404 302 302 404",
     ),
