@@ -1,5 +1,5 @@
 """A round's archive: one ZIP of a run's outputs per audience, built as a job
-(docs/architecture.md §3, docs/lifecycles.md §4; the contents: docs/interfaces.md §6).
+(docs/architecture.md §3; the contents: docs/interfaces.md §6).
 
 * asked for (:func:`archive_request`): one row per run and audience, made once under
   unique constraints, so asking again returns the row there is — ready, queued or
