@@ -8,7 +8,9 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import io
+import threading
 import time
+import tracemalloc
 import zipfile
 from pathlib import Path
 
@@ -16,13 +18,16 @@ import openpyxl
 import pytest
 from django.contrib.auth import get_user_model
 from django.core.files.storage import default_storage
+from django.db import connection
 from django.utils import timezone
 
 from analysis.archive import archive_execute, archive_request, archives_sweep
+from analysis.archive_contents import Entry, write_archive
 from analysis.models import AssignedValue, CompatibilityMatrix, Report, RoundArchive
 from analysis.publication import comparison_publish
 from analysis.reports.services import report_issue
 from analysis.tasks import archive_build_task
+from labs.importers import write_table_to
 from labs.models import Laboratory, Participant
 from labs.selectors import comparison_result_rows
 from tests.analysis.conftest import DEMO_CODE as CODE
@@ -143,6 +148,8 @@ def test_participant_archive_holds_only_its_own_and_the_summary(client, publishe
     client.force_login(member)
     zip_url = f"/results/{CODE}/archive/run{run.pk}.zip"
     assert client.get(zip_url).status_code == 404  # not asked for yet
+    page = client.get(f"/results/{CODE}/").content.decode()
+    assert f'action="/results/{CODE}/archive/"' in page and "your report and the summary" in page
     assert client.post(f"/results/{CODE}/archive/").status_code == 302
     files = members(download(client, zip_url))
     reports = sorted(n for n in files if n.startswith("reports/"))
@@ -259,3 +266,65 @@ def test_a_large_round_is_built_by_the_task_and_a_lost_one_by_the_sweep(
         response = client.post(C + "archive/", {"run": run.pk}, HTTP_HX_REQUEST="true")
     assert response.status_code == 200 and b"Download everything (ZIP)" in response.content
     assert RoundArchive.objects.get().attempts == 1
+
+
+@pytest.mark.django_db(transaction=True)
+def test_two_requests_at_once_make_one_row_and_send_one_task(
+    needs_postgres, run, demo, settings, monkeypatch
+):
+    """Two requests on two connections, released together: one row (the unique constraint
+    and the row lock), one task sent."""
+    settings.ARCHIVE_INLINE_MAX_SCORES = 0
+    sent: list[int] = []
+    monkeypatch.setattr("analysis.archive._send_pk", sent.append)
+    barrier = threading.Barrier(2)
+    out: list[object] = [None, None]
+
+    def ask(i: int) -> None:
+        try:
+            barrier.wait(10)
+            out[i] = archive_request(comparison=demo, run=run).pk
+        except BaseException as exc:  # reported below, not lost in the thread
+            out[i] = exc
+        finally:
+            connection.close()
+
+    threads = [threading.Thread(target=ask, args=(i,)) for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(60)
+    assert out[0] == out[1] == RoundArchive.objects.get().pk, out
+    assert sent == [out[0]]
+
+
+def _archive_peak(path: Path, n: int) -> int:
+    """The peak of memory allocated while ``write_archive`` writes ``n`` score-like rows."""
+
+    def rows():
+        for i in range(n):
+            yield {"lab": f"L{i % 50}", "frequency_hz": 5.0 + i, "en": 0.1234567 * i}
+
+    def write(out):
+        write_table_to(out, rows(), format="csv", columns=["lab", "frequency_hz", "en"])
+
+    when = dt.datetime(2026, 1, 2, 3, 4, 6, tzinfo=dt.UTC)  # ZIP times: 2 s steps
+    with open(path, "wb") as out:
+        tracemalloc.start()
+        try:
+            write_archive(out, [Entry("scores.csv", "", write)], when)
+            return tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+
+def test_an_archive_is_written_as_a_stream_in_bounded_memory(tmp_path):
+    """Five times the rows, the same memory: the members are streamed (the zlib window and
+    a few buffers, under 1 MB), never held whole."""
+    small = _archive_peak(tmp_path / "small.zip", 4_000)
+    large = _archive_peak(tmp_path / "large.zip", 20_000)
+    with zipfile.ZipFile(tmp_path / "large.zip") as z:
+        (info,) = z.infolist()
+        assert info.date_time == (2026, 1, 2, 3, 4, 6) and info.file_size > 500_000
+        assert len(z.read("scores.csv").splitlines()) == 20_001
+    assert large < 1.25 * small and large < 1_000_000, (small, large)
