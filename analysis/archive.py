@@ -43,12 +43,13 @@ from analysis.archive_contents import (
     write_archive,
 )
 from analysis.models import AnalysisRun, RoundArchive, archive_path
+from analysis.selectors import current_run
 from analysis.tasks import archive_build_task
 from common import jobs
 from common.errors import ApplicationError, StateConflict
 from common.jobs import heartbeat
 from labs.models import Participant
-from proficiency.models import Comparison
+from proficiency.models import Comparison, ComparisonStatus
 
 if TYPE_CHECKING:
     from django.contrib.auth.models import AbstractBaseUser, AnonymousUser
@@ -82,8 +83,7 @@ def archive_request(
     coordinators, or for ``participant``: the one row of that run and audience, made if
     there is none, queued again if it failed or lacks a report issued since.  Idempotent:
     asking again returns the same row.  Built here for a small run, else by a task."""
-    if run.comparison_id != comparison.pk or run.status != AnalysisRun.Status.SUCCEEDED:
-        raise StateConflict(f"Run {run.pk} is not a successful analysis run of {comparison.code}.")
+    _check_readable(comparison, run, participant)
     inline = run.scores.count() <= settings.ARCHIVE_INLINE_MAX_SCORES
     with transaction.atomic():
         archive, queued = _requested(run, participant, user)
@@ -94,6 +94,26 @@ def archive_request(
         archive_execute(archive_id=archive.pk)
         archive.refresh_from_db()
     return archive
+
+
+def _check_readable(
+    comparison: Comparison, run: AnalysisRun, participant: Participant | None
+) -> None:
+    """What the results pages allow, said once: a successful run of the round; for a
+    participant of the round, only once published and only the current run."""
+    if run.comparison_id != comparison.pk or run.status != AnalysisRun.Status.SUCCEEDED:
+        raise StateConflict(f"Run {run.pk} is not a successful analysis run of {comparison.code}.")
+    if participant is None:
+        return
+    if participant.comparison_id != comparison.pk:
+        raise StateConflict(
+            f"Participant {participant.code} does not take part in {comparison.code}."
+        )
+    if comparison.status != ComparisonStatus.PUBLISHED:
+        raise StateConflict(f"The results of {comparison.code} are not published yet.")
+    current = current_run(comparison)
+    if current is None or current.pk != run.pk:
+        raise StateConflict(f"Run {run.pk} is not the published results of {comparison.code}.")
 
 
 def _requested(

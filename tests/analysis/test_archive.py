@@ -27,6 +27,7 @@ from analysis.models import AssignedValue, CompatibilityMatrix, Report, RoundArc
 from analysis.publication import comparison_publish
 from analysis.reports.services import report_issue
 from analysis.tasks import archive_build_task
+from common.errors import StateConflict
 from labs.importers import write_table_to
 from labs.models import Laboratory, Participant
 from labs.selectors import comparison_result_rows
@@ -328,3 +329,10 @@ def test_an_archive_is_written_as_a_stream_in_bounded_memory(tmp_path):
         assert info.date_time == (2026, 1, 2, 3, 4, 6) and info.file_size > 500_000
         assert len(z.read("scores.csv").splitlines()) == 20_001
     assert large < 1.25 * small and large < 1_000_000, (small, large)
+
+
+def test_a_participant_archive_needs_the_published_current_run(run, demo):
+    participant = Participant.objects.filter(comparison=demo).order_by("code")[0]
+    with pytest.raises(StateConflict, match="not published yet"):
+        archive_request(comparison=demo, run=run, participant=participant)
+    assert not RoundArchive.objects.exists()
