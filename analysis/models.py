@@ -486,3 +486,81 @@ class Publication(models.Model):
 
     def __str__(self) -> str:
         return f"Publication {self.pk} of {self.comparison.code} ({self.status})"
+
+
+def archive_path(instance: RoundArchive, filename: str) -> str:
+    """MEDIA_ROOT/archives/<comparison>/<random>.zip: outside static, not guessable."""
+    return f"archives/{instance.comparison.code}/{secrets.token_urlsafe(24)}.zip"
+
+
+class RoundArchive(models.Model):
+    """One ZIP of a run's outputs for one audience (docs/interfaces.md §6): the coordinators'
+    (``participant`` null) or one participant's.  A persisted job, ``pending → running →
+    ready | failed`` (pending is shown as "queued"), claimed, kept alive and re-queued by the
+    protocol of ``common.jobs`` (``token``, ``claimed_by``, ``heartbeat_at``), like
+    :class:`ReportBatch`.  One row per run and audience: asking again finds it.
+
+    ``file``, ``size`` and ``sha256`` are set together, with ``ready``, once the whole ZIP
+    is stored: a row that is not ready has no file.  ``report_ids`` are the reports it
+    holds; a report issued for the run since makes a request build it again.
+    """
+
+    class Status(models.TextChoices):
+        PENDING = "pending", "Queued"
+        RUNNING = "running", "Running"
+        READY = "ready", "Ready"
+        FAILED = "failed", "Failed"
+
+    comparison = models.ForeignKey(Comparison, on_delete=models.CASCADE, related_name="archives")
+    run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="archives")
+    participant = models.ForeignKey(
+        Participant, null=True, blank=True, on_delete=models.CASCADE, related_name="archives",
+        help_text="the participant whose archive it is; empty: the coordinators'",
+    )  # fmt: skip
+    requested_by = models.ForeignKey(
+        settings.AUTH_USER_MODEL, null=True, blank=True, on_delete=models.SET_NULL
+    )
+    status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
+    file = models.FileField(upload_to=archive_path, blank=True, max_length=200)
+    size = models.PositiveBigIntegerField(default=0)
+    sha256 = models.CharField(max_length=64, blank=True)
+    report_ids = models.JSONField(default=list, blank=True, help_text="the reports it holds")
+    error = models.TextField(blank=True, help_text="why the last attempt failed")
+    attempts = models.PositiveSmallIntegerField(default=0, help_text="claims so far")
+    token = models.CharField(max_length=32, blank=True, help_text="the current claim")
+    claimed_by = models.CharField(
+        max_length=64, blank=True, help_text="task id of the claim, or of the task last sent"
+    )
+    heartbeat_at = models.DateTimeField(
+        null=True, blank=True, help_text="last sign of life of its task (or when it was sent)"
+    )
+    created_at = models.DateTimeField(auto_now_add=True)
+    started_at = models.DateTimeField(null=True, blank=True)
+    finished_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["run_id", "participant_id"]
+        constraints = [
+            models.UniqueConstraint(
+                fields=["run"], condition=Q(participant__isnull=True),
+                name="archive_once_for_coordinators",
+            ),
+            models.UniqueConstraint(
+                fields=["run", "participant"], condition=Q(participant__isnull=False),
+                name="archive_once_per_participant",
+            ),
+            models.CheckConstraint(
+                condition=Q(status="ready") | Q(file=""), name="archive_file_only_when_ready"
+            ),
+        ]  # fmt: skip
+        indexes = [  # what the sweep reads every minute
+            models.Index(
+                fields=["status"],
+                condition=Q(status__in=["pending", "running"]),
+                name="archive_active",
+            ),
+        ]
+
+    def __str__(self) -> str:
+        who = self.participant.code if self.participant_id and self.participant else "coordinators"
+        return f"Archive of run {self.run_id} for {who} ({self.status})"

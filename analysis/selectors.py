@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -298,6 +299,38 @@ def z_used_name(score: Score) -> str | None:
     if score.z is None:
         return None
     return "z_prime" if getattr(score, "z_is_prime", False) else "z"
+
+
+#: the scores download's columns (CSV, XLSX and the round's archive)
+SCORE_COLUMNS = [
+    "lab", "device", "axis", "frequency_hz", "bench", "direction", "sensitivity", "unit",
+    "expanded_uncertainty", "coverage_factor", "assigned_value", "assigned_standard_uncertainty",
+    "assigned_expanded_uncertainty", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag",
+    "z_flag", "in_assigned_value", "correlation_applied", "correlation_failed", "z_used",
+]  # fmt: skip
+
+
+def score_records(run: AnalysisRun, filters: dict[str, str]) -> Iterator[dict[str, Any]]:
+    """The scores download's rows (:data:`SCORE_COLUMNS`), one per score of ``run_scores``,
+    with the point's assigned value: read 5,000 scores at a time, never all at once."""
+    assigned = dict(
+        (pid, (v, u, k * u)) for pid, v, u, k in run.assigned_values.values_list(
+            "measurement_point_id", "value", "standard_uncertainty", "coverage_factor")
+    )  # fmt: skip
+    for s in run_scores(run, filters).iterator(chunk_size=5000):
+        r, p = s.result, s.result.measurement_point
+        x_pt, u_pt, big_u_pt = assigned.get(p.pk, (None, None, None))
+        yield {
+            "lab": r.submission.participant.code, "device": p.device.name, "axis": p.axis,
+            "frequency_hz": p.frequency_hz, "bench": p.bench, "direction": p.direction,
+            "sensitivity": r.value, "unit": r.unit, "expanded_uncertainty": r.expanded_uncertainty,
+            "coverage_factor": r.coverage_factor, "assigned_value": x_pt,
+            "assigned_standard_uncertainty": u_pt, "assigned_expanded_uncertainty": big_u_pt,
+            "d": s.d, "d_percent": s.d_percent, "en": s.en, "zeta": s.zeta, "z": s.z,
+            "z_prime": s.z_prime, "flag": s.flag, "z_flag": s.z_flag,
+            "in_assigned_value": s.in_assigned_value, "correlation_applied": s.correlation_applied,
+            "correlation_failed": s.correlation_failed, "z_used": z_used_name(s) or "",
+        }  # fmt: skip
 
 
 def approximate_subsets(run: AnalysisRun) -> int:

@@ -70,6 +70,16 @@ def publication_task(self, publication_id: int) -> str:
     return publication_execute(publication_id=publication_id, delivery=self.request.id or "")
 
 
+@shared_task(bind=True, **_TASK)
+def archive_build_task(self, archive_id: int) -> str:
+    """Build and store the ZIP of archive ``archive_id`` (claimed with a conditional update;
+    a row already ready is left as it is); its status at the end."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
+    from analysis.archive import archive_execute
+
+    return archive_execute(archive_id=archive_id, delivery=self.request.id or "")
+
+
 @shared_task(soft_time_limit=120, time_limit=180)
 def reports_pending_task() -> int:
     """Celery beat: queue the reports of published comparisons that still miss some."""
@@ -82,9 +92,10 @@ def reports_pending_task() -> int:
 @shared_task(soft_time_limit=50, time_limit=60)
 def jobs_sweep_task() -> dict[str, int]:
     """Celery beat (``JOB_SWEEP_SECONDS``): re-queue analysis runs, raw-data recomputations,
-    report batches and publications whose worker was lost (heartbeat older than
+    report batches, publications and round archives whose worker was lost (heartbeat older than
     ``JOB_STALE_SECONDS``) or whose message was; the counts of tasks sent."""
     # in the body: the service modules import this one to enqueue the task (a cycle)
+    from analysis.archive import archives_sweep
     from analysis.publication import publications_sweep
     from analysis.reports.services import report_batches_sweep
     from analysis.services import analysis_sweep
@@ -94,4 +105,5 @@ def jobs_sweep_task() -> dict[str, int]:
         "raw": raw_sweep(),
         "reports": report_batches_sweep(),
         "publications": publications_sweep(),
+        "archives": archives_sweep(),
     }

@@ -4,7 +4,7 @@ participants (``lab_*`` names under ``/results/``)."""
 
 from django.urls import path
 
-from analysis import consistency_views, views
+from analysis import archive_views, consistency_views, views
 
 C = "coordinator/<slug:code>/"
 P = "results/<slug:code>/"
@@ -47,4 +47,9 @@ for prefix, base, audience in (("", C, COORD), ("lab_", P, LAB)):
              name=prefix + "consistency"),
         path(base + "consistency.csv", consistency_views.consistency_download, audience,
              name=prefix + "consistency_download"),
+        path(base + "archive/", archive_views.archive_ask, audience, name=prefix + "archive"),
+        path(base + "archive/status/", archive_views.archive_status, audience,
+             name=prefix + "archive_status"),
+        path(base + "archive/run<int:run>.zip", archive_views.archive_download, audience,
+             name=prefix + "archive_download"),
     ]  # fmt: skip

@@ -28,20 +28,22 @@ from django.urls import reverse
 from django.views.decorators.http import require_GET, require_POST
 
 from analysis import charts
+from analysis.archive import archive_shown
 from analysis.chart_cache import cached_chart
 from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
-from analysis.models import AnalysisRun, AssignedValue, Publication, Score
+from analysis.models import AnalysisRun, AssignedValue, Publication, RoundArchive, Score
 from analysis.performance import lab_performance, performance
 from analysis.publication import active_publication, publication_start
 from analysis.selectors import (
     EXACT_MAX,
+    SCORE_COLUMNS,
     approximate_subsets,
     current_run,
     lab_matrices,
     run_consistency,
     run_matrices,
     run_scores,
-    z_used_name,
+    score_records,
 )
 from analysis.services import analysis_run_cancel, analysis_run_start
 from common.errors import ApplicationError
@@ -61,12 +63,6 @@ CONTENT_TYPES = {
     "csv": "text/csv; charset=utf-8",
     "xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet",
 }
-SCORE_COLUMNS = [
-    "lab", "device", "axis", "frequency_hz", "bench", "direction", "sensitivity", "unit",
-    "expanded_uncertainty", "coverage_factor", "assigned_value", "assigned_standard_uncertainty",
-    "assigned_expanded_uncertainty", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag",
-    "z_flag", "in_assigned_value", "correlation_applied", "correlation_failed", "z_used",
-]  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -295,8 +291,21 @@ def results(request: AuthenticatedHttpRequest, code: str, audience: str) -> Http
         # a participant's landing page starts with how it did
         "summary": lab_performance(viewer.run, viewer.own_code) if viewer.own_code else None,
         "scores_url": viewer.url("scores"),
+        **archive_context(viewer, archive_shown(viewer.run, viewer.own_code)),
     }  # fmt: skip
     return _render(request, viewer, "results", context)
+
+
+def archive_context(viewer: Viewer, archive: RoundArchive | None) -> dict[str, object]:
+    """What ``analysis/_archive.html`` shows: the archive of the run shown (if any) and the
+    reader's links to ask for it, poll it and download it."""
+    assert viewer.run is not None
+    prefix = "" if viewer.is_coordinator else "lab_"
+    download = reverse(f"coordinator:{prefix}archive_download",
+                       args=[viewer.comparison.code, viewer.run.pk])  # fmt: skip
+    urls = {"ask": viewer.url("archive"), "status": viewer.url("archive_status"),
+            "download": download}  # fmt: skip
+    return {"archive": archive, "archive_urls": urls}
 
 
 @login_required
@@ -348,29 +357,6 @@ def scores(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpR
     return _render(request, viewer, "scores", context)
 
 
-def _score_records(run: AnalysisRun, filters: dict[str, str]) -> list[dict]:
-    assigned = dict(
-        (pid, (v, u, k * u)) for pid, v, u, k in run.assigned_values.values_list(
-            "measurement_point_id", "value", "standard_uncertainty", "coverage_factor")
-    )  # fmt: skip
-    records = []
-    for s in run_scores(run, filters).iterator(chunk_size=5000):
-        r, p = s.result, s.result.measurement_point
-        x_pt, u_pt, big_u_pt = assigned.get(p.pk, (None, None, None))
-        records.append({
-            "lab": r.submission.participant.code, "device": p.device.name, "axis": p.axis,
-            "frequency_hz": p.frequency_hz, "bench": p.bench, "direction": p.direction,
-            "sensitivity": r.value, "unit": r.unit, "expanded_uncertainty": r.expanded_uncertainty,
-            "coverage_factor": r.coverage_factor, "assigned_value": x_pt,
-            "assigned_standard_uncertainty": u_pt, "assigned_expanded_uncertainty": big_u_pt,
-            "d": s.d, "d_percent": s.d_percent, "en": s.en, "zeta": s.zeta, "z": s.z,
-            "z_prime": s.z_prime, "flag": s.flag, "z_flag": s.z_flag,
-            "in_assigned_value": s.in_assigned_value, "correlation_applied": s.correlation_applied,
-            "correlation_failed": s.correlation_failed, "z_used": z_used_name(s) or "",
-        })  # fmt: skip
-    return records
-
-
 @login_required
 @require_GET
 def scores_download(
@@ -383,7 +369,7 @@ def scores_download(
     if viewer.run is None:
         raise Http404(f"{code} has no analysed results yet.")
     form = ScoreFilterForm(request.GET, comparison=viewer.comparison, lab_codes=_lab_codes(viewer))
-    records = _score_records(viewer.run, form.filters())
+    records = score_records(viewer.run, form.filters())
     data = write_table(records, format=fmt, columns=SCORE_COLUMNS)  # type: ignore[arg-type]
     response = HttpResponse(data, content_type=CONTENT_TYPES[fmt])
     name = f"{viewer.comparison.code}-scores-run{viewer.run.pk}.{fmt}"

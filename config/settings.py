@@ -199,6 +199,9 @@ CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
 JOB_HEARTBEAT_SECONDS = env.float("JOB_HEARTBEAT_SECONDS", default=30.0)
 JOB_STALE_SECONDS = max(env.float("JOB_STALE_SECONDS", default=300.0), 3 * JOB_HEARTBEAT_SECONDS)
 JOB_SWEEP_SECONDS = env.float("JOB_SWEEP_SECONDS", default=60.0)
+# A round's archive (docs/interfaces.md §6) of a run with at most this many scores is built
+# in the request that asks for it (a second or two); a larger one by a task.
+ARCHIVE_INLINE_MAX_SCORES = env.int("ARCHIVE_INLINE_MAX_SCORES", default=5000)
 # Redis: a task taken by a worker that dies (SIGKILL, power loss) is delivered again after
 # the visibility timeout (acks_late).  The sweep recovers lost jobs within minutes; this
 # redelivery is the backstop.  It must exceed the hard time limit of the longest task, else

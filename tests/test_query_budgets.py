@@ -47,6 +47,7 @@ ROUTES: list[tuple[str, str, int, str]] = [
     # + its performance summary: the grouped counts, the maxima, the largest |En| and |z|
     ("a_staff", f"/results/{C1}/", 23, "published"),
     ("a_staff", f"/results/{C1}/scores/", 20, "published"),
+    ("a_staff", f"/results/{C1}/archive/status/", 8, "published"),
     # laboratory API (API key)
     ("key_a", "/api/v1/comparisons/", 5, ""),
     ("key_a", f"/api/v1/comparisons/{C1}/measurands/", 6, ""),
@@ -62,6 +63,7 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("coord1", f"/coordinator/{C1}/results/", 19, ""),
     ("coord1", f"/coordinator/{C1}/analysis/runs/", 11, ""),
     ("coord1", f"/coordinator/{C1}/scores/", 19, ""),
+    ("coord1", f"/coordinator/{C1}/archive/status/", 8, ""),
     ("coord1", f"/coordinator/{C1}/performance/", 19, ""),
     ("coord1", f"/coordinator/{C1}/raw-data/", 10, ""),
     ("coord1", f"/coordinator/{C1}/kits/", 10, ""),

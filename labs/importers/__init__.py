@@ -13,7 +13,7 @@ from .schema import (
     TableContext,
     missing_points,
 )
-from .table import MAX_BYTES, MAX_ROWS, parse_rows, parse_table, write_table
+from .table import MAX_BYTES, MAX_ROWS, parse_rows, parse_table, write_table, write_table_to
 
 __all__ = [
     "COLUMNS",
@@ -30,4 +30,5 @@ __all__ = [
     "parse_rows",
     "parse_table",
     "write_table",
+    "write_table_to",
 ]

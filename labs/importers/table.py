@@ -10,11 +10,15 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import datetime as dt
 import gc
 import io
 import math
+import os
+import shutil
+import zipfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from typing import Literal
+from typing import Any, BinaryIO, Literal
 
 from .columns import record_columns, sheet_columns, validate_columns
 from .errors import RowError, fatal
@@ -26,7 +30,7 @@ from .values import escape_text, format_number, human_size
 MAX_BYTES = 5 * 2**20
 MAX_ROWS = 100_000
 
-__all__ = ["MAX_BYTES", "MAX_ROWS", "parse_rows", "parse_table", "write_table"]
+__all__ = ["MAX_BYTES", "MAX_ROWS", "parse_rows", "parse_table", "write_table", "write_table_to"]
 
 
 def parse_table(
@@ -180,33 +184,101 @@ def write_table(
     """
     records = [r.as_record() if isinstance(r, ResultRow) else dict(r) for r in rows]
     names = list(columns) if columns is not None else _default_columns(records)
-    table = [[_cell(record.get(name)) for name in names] for record in records]
+    if format not in ("csv", "xlsx"):
+        raise ValueError(f"unknown format {format!r}; use 'csv' or 'xlsx'")
+    buffer = io.BytesIO()
+    write_table_to(buffer, records, format=format, columns=names, delimiter=delimiter, bom=bom)
+    return buffer.getvalue()
+
+
+def write_table_to(
+    out: BinaryIO,
+    rows: Iterable[ResultRow | Mapping[str, object]],
+    *,
+    format: Literal["csv", "xlsx"],
+    columns: Sequence[str],
+    delimiter: str = ",",
+    bom: bool = True,
+    when: dt.datetime | None = None,
+) -> int:
+    """:func:`write_table` into ``out``, a row at a time (bounded memory: the rows may be a
+    generator over a million results); the number of rows.  ``columns`` is required (the
+    default columns need every row first).  ``when`` fixes the workbook's dates (its
+    properties and its ZIP entries), so an XLSX written twice is the same bytes."""
+    table = ([_cell(rec.get(name)) for name in columns] for rec in _records(rows))
     if format == "csv":
-        return _write_csv(names, table, delimiter=delimiter, bom=bom)
+        return _write_csv(out, list(columns), table, delimiter=delimiter, bom=bom)
     if format == "xlsx":
-        return _write_xlsx(names, table)
+        return _write_xlsx(out, list(columns), table, when)
     raise ValueError(f"unknown format {format!r}; use 'csv' or 'xlsx'")
 
 
-def _write_csv(names: list[str], table: list[list[object]], *, delimiter: str, bom: bool) -> bytes:
-    buffer = io.StringIO(newline="")
-    writer = csv.writer(buffer, delimiter=delimiter, lineterminator="\r\n")
-    writer.writerow(names)
-    writer.writerows([[repr(v) if isinstance(v, float) else v for v in row] for row in table])
-    return ("\ufeff" if bom else "").encode() + buffer.getvalue().encode("utf-8")
+def _records(rows: Iterable[ResultRow | Mapping[str, object]]) -> Iterator[Mapping[str, object]]:
+    return (r.as_record() if isinstance(r, ResultRow) else r for r in rows)
 
 
-def _write_xlsx(names: list[str], table: list[list[object]]) -> bytes:
+def _write_csv(
+    out: BinaryIO, names: list[str], table: Iterable[list[object]], *, delimiter: str, bom: bool
+) -> int:
+    text = io.TextIOWrapper(out, encoding="utf-8", newline="", write_through=True)
+    try:
+        text.write("\ufeff" if bom else "")
+        writer = csv.writer(text, delimiter=delimiter, lineterminator="\r\n")
+        writer.writerow(names)
+        n = 0
+        for row in table:
+            writer.writerow([repr(v) if isinstance(v, float) else v for v in row])
+            n += 1
+        text.flush()
+    finally:
+        text.detach()  # ``out`` stays open: it is the caller's
+    return n
+
+
+class _FixedDatesZip(zipfile.ZipFile):
+    """openpyxl's ZIP with every entry dated ``date_time`` (not the clock's, nor a file's)."""
+
+    date_time: tuple[int, int, int, int, int, int] = (1980, 1, 1, 0, 0, 0)
+
+    def _info(self, name: str) -> zipfile.ZipInfo:
+        info = zipfile.ZipInfo(name, date_time=self.date_time)
+        info.compress_type = self.compression
+        info.external_attr = 0o644 << 16
+        return info
+
+    def writestr(self, zinfo_or_arcname: Any, data: Any, *args: Any, **kwargs: Any) -> None:
+        if isinstance(zinfo_or_arcname, str):
+            zinfo_or_arcname = self._info(zinfo_or_arcname)
+        super().writestr(zinfo_or_arcname, data, *args, **kwargs)
+
+    def write(self, filename: Any, arcname: Any = None, *args: Any, **kwargs: Any) -> None:
+        # a write-only sheet's rows, from its temporary file: copied, not read whole
+        large = os.path.getsize(filename) > zipfile.ZIP64_LIMIT // 2
+        member = self._info(arcname)
+        with open(filename, "rb") as src, self.open(member, "w", force_zip64=large) as dst:
+            shutil.copyfileobj(src, dst, 2**20)
+
+
+def _write_xlsx(
+    out: BinaryIO, names: list[str], table: Iterable[list[object]], when: dt.datetime | None
+) -> int:
     # openpyxl only where a workbook is written: CSV downloads never load it
     from openpyxl import Workbook
+    from openpyxl.writer.excel import ExcelWriter
 
     workbook = Workbook(write_only=True)
     sheet = workbook.create_sheet("results")
     sheet.append(names)
+    n = 0
     for row in table:
         # Text cells come from escape_text: no control characters (XML cannot hold them),
         # and none starts with "=", which openpyxl would write as a formula.
         sheet.append(row)
-    buffer = io.BytesIO()
-    workbook.save(buffer)
-    return buffer.getvalue()
+        n += 1
+    stamp = (when or dt.datetime.now(dt.UTC)).astimezone(dt.UTC).replace(tzinfo=None, microsecond=0)
+    workbook.properties.created = workbook.properties.modified = stamp
+    archive = _FixedDatesZip(out, "w", zipfile.ZIP_DEFLATED, allowZip64=True)
+    archive.date_time = (max(stamp.year, 1980), stamp.month, stamp.day, stamp.hour,
+                         stamp.minute, stamp.second)  # fmt: skip
+    ExcelWriter(workbook, archive).save()  # what openpyxl's save_workbook does, dates fixed
+    return n

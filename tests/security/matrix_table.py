@@ -327,6 +327,21 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    # the round's archive: asked for by the round's coordinators (POST; built inline, then
+    # back to the results page), its status line and the ready ZIP (the world holds the
+    # coordinators' archive of the run)
+    "coordinator/<slug:code>/archive/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 302 404 302 302 302",
+    ),
+    "coordinator/<slug:code>/archive/status/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "coordinator/<slug:code>/archive/run<int:run>.zip": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
     # participants' results pages: 404 until published (comparison 1 is analysed)
     "results/<slug:code>/": Row(
         get="302 404 404 404 404 404 302 302 404",
@@ -353,6 +368,18 @@ TABLE: dict[str, Row] = {
         post="302 405 405 405 405 405 302 302 405",
     ),
     "results/<slug:code>/consistency.csv": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "results/<slug:code>/archive/": Row(
+        get="302 405 405 405 405 405 302 302 405",
+        post="302 404 404 404 404 404 302 302 404",
+    ),
+    "results/<slug:code>/archive/status/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "results/<slug:code>/archive/run<int:run>.zip": Row(
         get="302 404 404 404 404 404 302 302 404",
         post="302 405 405 405 405 405 302 302 405",
     ),
@@ -613,6 +640,11 @@ PUBLISHED: dict[str, Row] = {
     "results/<slug:code>/compatibility/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/consistency/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/consistency.csv": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "results/<slug:code>/archive/status/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    # each participant reads its own archive only: lab A's is built, lab B has none (404)
+    "results/<slug:code>/archive/run<int:run>.zip": Row(
+        get="302 200 200 404 404 404 302 302 404", post=""
+    ),
     "reports/<slug:code>/": Row(get="302 200 200 200 200 404 302 302 200", post=""),
     "api/v1/comparisons/<slug:code>/scores/": Row(
         get="401 200 200 200 200 404 200 401 200", post=""

@@ -34,6 +34,7 @@ from django.test import Client
 from django.urls import reverse
 from rest_framework.views import APIView
 
+from analysis.archive import archive_request
 from analysis.reports.services import report_issue
 from tests.security.matrix_table import OPTIONAL, PK, PUBLISHED, TABLE, TOKEN
 from tests.security.routes import Route, discover
@@ -218,6 +219,8 @@ def test_published_results_show_codes_never_names(world):
         comparison=world.c1, kind="participant", participant=preliminary.participant
     )
     assert (preliminary.status, world.report_a.status) == ("preliminary", "final")
+    lab_a = archive_request(comparison=world.c1, run=world.run, participant=preliminary.participant)
+    assert lab_a.status == "ready", lab_a.error  # its ZIP: lab A reads it, lab B gets 404
     clients = {p: world.client(p) for p in PERSONAS}
     routes = {r.route: r for r in discover()}
     problems = []

@@ -6,8 +6,10 @@ response to someone who must not see them is checked for them.
 
 * comparison 1 (``SEC-C1``, analysed, not published): labs A, B and C take part,
   coordinated by ``coord1``; one successful analysis run; a preliminary summary and a
-  preliminary participant report for lab A; lab A has an accepted version 1 and a
-  draft version 2, labs B and C only a version 1 (so version 2 is lab A's alone);
+  preliminary participant report for lab A; the coordinators' archive of the run (a ZIP
+  of its outputs and those two reports, built inline: a small run); lab A has an accepted
+  version 1 and a draft version 2, labs B and C only a version 1 (so version 2 is lab A's
+  alone);
 * comparison 2 (``SEC-C2``, open): lab B takes part, coordinated by ``coord2``.
 """
 
@@ -19,6 +21,7 @@ from typing import Any
 from django.contrib.auth.models import Permission
 from django.test import Client
 
+from analysis.archive import archive_request
 from analysis.models import AnalysisRun, Report
 from analysis.reports.services import report_issue
 from analysis.services import analysis_run_start
@@ -168,6 +171,7 @@ def build_world(capture_on_commit: Any) -> World:
     c1.refresh_from_db()
     summary = report_issue(comparison=c1, kind=Report.Kind.SUMMARY)
     report_a = report_issue(comparison=c1, kind=Report.Kind.PARTICIPANT, participant=part_a)
+    assert archive_request(comparison=c1, run=run).status == "ready"
     key_a, secret = api_key_create(laboratory=lab_a, name="acquisition PC", user=None)
     revoked, revoked_secret = api_key_create(laboratory=lab_a, name="old PC", user=None)
     api_key_revoke(key=revoked)
