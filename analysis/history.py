@@ -1,4 +1,4 @@
-"""A laboratory's history across rounds (docs/domain.md §12): its scores at comparable
+"""A laboratory's history across rounds (docs/domain.md §4.1): its scores at comparable
 points in every published round it took part in, the proportion of satisfactory results per
 round, and the combined scores RSZ and RLP of the z that counts per comparable point.
 
@@ -235,7 +235,7 @@ def _close(a: float | None, b: float | None) -> bool:
 
 
 def comparable(a: ComparableKey, b: ComparableKey) -> bool:
-    """The comparable points rule (docs/domain.md §12): the same model, bench, direction and
+    """The comparable points rule (docs/domain.md §4.1): the same model, bench, direction and
     axis, the frequency and the amplitude equal to ``RELATIVE_TOLERANCE`` (no amplitude is
     comparable only with no amplitude)."""
     return (

@@ -1,4 +1,4 @@
-"""The trend chart of a laboratory's history (docs/domain.md §12): its En and its z (the one
+"""The trend chart of a laboratory's history (docs/domain.md §4.1): its En and its z (the one
 that counts) per round, plain data in, SVG text out, drawn as ``analysis.charts`` draws
 (matplotlib's object-oriented API, byte-stable SVG)."""
 
