@@ -1,4 +1,4 @@
-"""A laboratory's history across rounds (docs/domain.md §12): joined through the laboratory
+"""A laboratory's history across rounds (docs/domain.md §4.1): joined through the laboratory
 (its codes differ between rounds), published rounds only with their published run, its own
 results only, the comparable points rule, RSZ and RLP against numpy, the satisfactory shares,
 the pages and who may read them, and a bounded number of queries."""
