@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from django.db.models import QuerySet
+from django.db.models import Q, QuerySet
 
 from analysis.core.scores import FLAG_LABELS, rlp, rsz
 from analysis.models import AnalysisRun, Publication, Score
@@ -127,7 +127,7 @@ class RoundSummary:
 
 @dataclass(frozen=True)
 class LabHistory:
-    laboratory: Laboratory
+    laboratory: str  # its name
     rounds: list[RoundSummary]
     points: list[PointHistory]
 
@@ -143,27 +143,38 @@ def lab_history(
     *,
     until: dt.datetime | None = None,
     within: QuerySet[Comparison] | None = None,
+    run: AnalysisRun | None = None,
 ) -> LabHistory:
     """``laboratory``'s history over the published rounds it took part in, dated on or
-    before ``until`` (every one when None), among ``within`` (a coordinator's rounds)."""
-    participations = _participations(laboratory, until, within)
+    before ``until`` (every one when None), among ``within`` (a coordinator's rounds).
+
+    ``run``: its round counts too, with this run, published or not: a participant report
+    is rendered from its run before its round is published (the final reports are rendered
+    first), so ``lab_history(lab, until=round_date(c), run=run)`` is its history up to it."""
+    participations = _participations(laboratory, until, within, run)
     runs = published_runs([p.comparison_id for p in participations])
+    if run is not None:
+        runs[run.comparison_id] = run.pk
     participations = [p for p in participations if p.comparison_id in runs]
     rows = _score_rows(runs.values(), [p.pk for p in participations])
     by_participant = {p.pk: p for p in participations}
     entries = [(_key(r), _entry(r, by_participant[r[_PARTICIPANT]])) for r in rows]
     rounds = [_round(p, runs[p.comparison_id], rows) for p in participations]
-    return LabHistory(laboratory, rounds, _points(entries))
+    return LabHistory(laboratory.name, rounds, _points(entries))
 
 
 def _participations(
-    laboratory: Laboratory, until: dt.datetime | None, within: QuerySet[Comparison] | None
+    laboratory: Laboratory,
+    until: dt.datetime | None,
+    within: QuerySet[Comparison] | None,
+    run: AnalysisRun | None,
 ) -> list[Participant]:
-    found = Participant.objects.filter(
-        laboratory=laboratory, comparison__status=ComparisonStatus.PUBLISHED
-    ).select_related("comparison")
+    rounds = Q(comparison__status=ComparisonStatus.PUBLISHED)
     if within is not None:
-        found = found.filter(comparison__in=within)
+        rounds &= Q(comparison__in=within)
+    if run is not None:
+        rounds |= Q(comparison_id=run.comparison_id)
+    found = Participant.objects.filter(rounds, laboratory=laboratory).select_related("comparison")
     kept = [p for p in found if until is None or round_date(p.comparison) <= until]
     return sorted(kept, key=lambda p: (round_date(p.comparison), p.comparison.code))
 

@@ -13,7 +13,7 @@ from django.db import connection
 from django.test.utils import CaptureQueriesContext
 from django.utils import timezone
 
-from analysis.history import ComparableKey, comparable, lab_history
+from analysis.history import ComparableKey, comparable, lab_history, round_date
 from analysis.history_chart import history_chart
 from analysis.models import AnalysisRun, AssignedValue, Publication, Score
 from analysis.services import analysis_run_execute, analysis_run_start
@@ -210,6 +210,18 @@ def test_until_and_within_narrow_the_rounds(labs, rounds):
     assert [r.code for r in lab_history(labs["A"], until=until).rounds] == ["R1"]
     within = Comparison.objects.filter(code="R2")
     assert [r.code for r in lab_history(labs["A"], within=within).rounds] == ["R2"]
+
+
+def test_a_report_rendered_before_publication_has_its_own_round(labs, rounds):
+    """A participant report of R3 (analysed, its final reports rendered before it is
+    published) asks for the history up to R3 with R3's run."""
+    r3, run = rounds["R3"], rounds["runs"]["R3"]
+    history = lab_history(labs["A"], until=round_date(r3), run=run)
+    assert [(r.code, r.own_code, r.run_id) for r in history.rounds][-1] == ("R3", "Z5", run.pk)
+    assert [r.code for r in history.rounds] == ["R1", "R2", "R3"]
+    assert all(len(p.entries) == 3 for p in history.points)
+    early = lab_history(labs["A"], until=round_date(rounds["R1"]), run=rounds["runs"]["R1"])
+    assert [r.code for r in early.rounds] == ["R1"]
 
 
 def test_comparable_points_rule(labs):
