@@ -24,6 +24,7 @@ from django.db.models import Q, QuerySet
 from analysis.core.scores import FLAG_LABELS, rlp, rsz
 from analysis.models import AnalysisRun, Publication, Score
 from analysis.selectors import with_z_used
+from common.numbers import significant
 from common.points import format_number
 from labs.models import Laboratory, Participant
 from proficiency.models import Comparison, ComparisonStatus
@@ -56,11 +57,12 @@ class ComparableKey:
 
     @property
     def label(self) -> str:
-        """``LSM6DSR, X, 5 Hz, linear vertical, 10 m/s²`` (the amplitude where one is set)."""
+        """``LSM6DSR, X, 5 Hz, linear vertical, 10 m/s²`` (the amplitude where one is set, to
+        four significant digits: the curvilinear bench's are computed, 49.78229978 m/s²)."""
         parts = [self.model, self.axis, f"{format_number(self.frequency_hz)} Hz",
                  f"{self.bench} {self.direction}"]  # fmt: skip
         if self.amplitude_m_s2 is not None:
-            parts.append(f"{format_number(self.amplitude_m_s2)} m/s²")
+            parts.append(f"{significant(self.amplitude_m_s2, 4)} m/s²")
         return ", ".join(parts)
 
 
