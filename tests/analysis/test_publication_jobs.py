@@ -29,11 +29,6 @@ C = f"/coordinator/{CODE}/"
 API = f"/api/v1/comparisons/{CODE}/publish/"
 
 
-def _jobs():
-    """The publications of the demo round (the demo's earlier round has its own)."""
-    return Publication.objects.filter(comparison__code=CODE)
-
-
 def person(username: str):
     return get_user_model().objects.get(username=username)
 
@@ -87,7 +82,7 @@ def test_publish_renders_every_report_then_publishes_and_lands_on_a_finished_pag
     mail.outbox.clear()
     with django_capture_on_commit_callbacks(execute=True):
         response = client.post(C + "publish/")
-    job = _jobs().get()
+    job = Publication.objects.get()
     assert response.status_code == 302
     assert response["Location"] == f"{C}publication/{job.pk}/"
     assert (job.status, job.progress, job.stage, job.error, job.attempts) == (
@@ -155,7 +150,7 @@ def test_a_rendering_failure_publishes_nothing_and_the_coordinator_can_try_again
     mail.outbox.clear()
     with django_capture_on_commit_callbacks(execute=True):
         response = client.post(C + "publish/")
-    job = _jobs().get()
+    job = Publication.objects.get()
     assert response["Location"] == f"{C}publication/{job.pk}/"
     assert (job.status, job.error) == ("failed", "RuntimeError: the disk is full")
     assert job.finished_at is not None and job.report_ids == []
@@ -176,7 +171,7 @@ def test_a_rendering_failure_publishes_nothing_and_the_coordinator_can_try_again
     broken = "nobody"  # the disk has room again
     with django_capture_on_commit_callbacks(execute=True):
         again = client.post(C + "publish/")
-    second = _jobs().get(status="succeeded")
+    second = Publication.objects.get(status="succeeded")
     assert again["Location"] == f"{C}publication/{second.pk}/" and second.pk != job.pk
     demo.refresh_from_db()
     assert demo.status == "published"
@@ -208,7 +203,7 @@ def test_a_second_delivery_of_a_succeeded_job_changes_nothing(
     assert sorted(Report.objects.values_list("pk", "sha256", "superseded")) == reports
     assert Notice.objects.filter(kind="published").count() == 12
     assert len(stand_in) == n_rendered and len(mail.outbox) == n_mail
-    assert _jobs().count() == 1
+    assert Publication.objects.count() == 1
 
 
 def test_a_second_request_while_one_is_pending_is_refused(client, run, demo):
@@ -218,7 +213,7 @@ def test_a_second_request_while_one_is_pending_is_refused(client, run, demo):
     assert (first.json()["status"], first.json()["publication"]["status"]) == (
         "analysed", "pending",
     )  # fmt: skip
-    job = _jobs().get()
+    job = Publication.objects.get()
     second = api("coordinator").post(API)
     assert second.status_code == 409
     assert second.json()["detail"] == (
@@ -230,7 +225,7 @@ def test_a_second_request_while_one_is_pending_is_refused(client, run, demo):
     page = " ".join(response.content.decode().split())
     assert f"publication {job.pk}, pending); wait for it to end." in page
     assert f'hx-get="{C}publication/{job.pk}/progress/"' in page  # polls while pending
-    assert _jobs().count() == 1
+    assert Publication.objects.count() == 1
     demo.refresh_from_db()
     assert demo.status == "analysed"
 
@@ -250,7 +245,7 @@ def test_refusals_are_said_at_once_and_make_no_job(client, run, demo):
     response = client.post(C + "publish/", follow=True)
     assert response.redirect_chain == [(C, 302)]
     assert "cannot go from closed to published" in response.content.decode()
-    assert not _jobs().exists()
+    assert not Publication.objects.exists()
 
 
 def test_the_round_moved_or_analysed_again_meanwhile_fails_the_job(
@@ -340,7 +335,7 @@ def test_the_api_answers_the_job(run, demo, stand_in, django_capture_on_commit_c
         response = api("coordinator").post(API)
     assert response.status_code == 202
     body = response.json()
-    job = _jobs().get()
+    job = Publication.objects.get()
     assert set(body) == {"code", "status", "submission_deadline", "publication"}
     # answered before the commit's callbacks ran the task (this test's transaction)
     assert (body["code"], body["status"], body["publication"]["status"]) == (

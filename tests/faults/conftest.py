@@ -11,7 +11,6 @@ servers.
 from __future__ import annotations
 
 import contextlib
-import io
 import os
 import select
 import socket
@@ -25,26 +24,12 @@ from pathlib import Path
 from urllib.parse import urlsplit
 
 import pytest
-from django.core.management import call_command
 
 BROKER = os.environ.get("CELERY_BROKER_URL", "")
 DATABASE_URL = os.environ.get("DATABASE_URL", "")
 REQUIRED = os.environ.get("REQUIRE_SERVICES") == "1"
 ROOT = Path(__file__).resolve().parents[2]
 BANNER = "FAULT TESTS NOT RUN"
-
-
-def load_demo() -> None:
-    """The demo as ``make run`` loads it, its earlier round's publication (queued at commit)
-    then executed in this process: the worker that receives the task finds the job done,
-    so a test's workers spend neither time nor a fault hook on that round."""
-    from analysis.models import Publication
-    from analysis.publication import publication_execute
-    from coordination.demo import PREVIOUS_CODE
-
-    call_command("load_demo", password="demo-password-1", stdout=io.StringIO())
-    for job in Publication.objects.filter(comparison__code=PREVIOUS_CODE, status="pending"):
-        assert publication_execute(publication_id=job.pk) == "succeeded", job.pk
 
 
 def _reachable(url: str, default_port: int) -> bool:

@@ -7,15 +7,17 @@ ends done (docs/lifecycles.md §4)."""
 import os
 import signal
 import time
+from io import StringIO
 
 import pytest
+from django.core.management import call_command
 
 from analysis.models import AnalysisRun, Report, ReportBatch
 from analysis.reports.tasks import reports_issue_all_task
 from analysis.services import analysis_run_execute
 from proficiency.models import Comparison
 from tests.analysis.reports.conftest import published_missing_reports
-from tests.faults.conftest import load_demo, wait_until
+from tests.faults.conftest import wait_until
 
 pytestmark = [
     pytest.mark.services,
@@ -33,7 +35,7 @@ ENV = {
 
 @pytest.fixture
 def analysed(workers):  # after ``workers``: the demo's own tasks go to the test's queue
-    load_demo()
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
     demo = Comparison.objects.get(code="IMU-2024-DEMO")
     run = AnalysisRun.objects.create(comparison=demo, parameters={"compare": ["device"]})
     assert analysis_run_execute(run_id=run.pk) == "succeeded"  # in-process: not the fault

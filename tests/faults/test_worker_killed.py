@@ -10,15 +10,17 @@ the lost chunk once its heartbeat is stale, within a few sweep intervals."""
 import os
 import signal
 import time
+from io import StringIO
 
 import pytest
+from django.core.management import call_command
 from django.db.models import Count
 
 from analysis.models import AnalysisChunk, AnalysisRun, AssignedValue, Score
 from analysis.services import analysis_run_execute, analysis_run_start
 from proficiency.models import Comparison
 from tests.analysis.test_fanout import stored
-from tests.faults.conftest import load_demo, wait_until
+from tests.faults.conftest import wait_until
 
 pytestmark = [
     pytest.mark.services,
@@ -33,7 +35,7 @@ COMPARE = ["axis", "frequency", "device", "bench", "direction"]
 @pytest.fixture
 def undisturbed(settings):
     """The demo analysed in one task, in this process: the reference numbers."""
-    load_demo()
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
     demo = Comparison.objects.get(code="IMU-2024-DEMO")
     settings.ANALYSIS_CHUNK_RESULTS = 10**9
     run = AnalysisRun.objects.create(comparison=demo, parameters={"compare": COMPARE})

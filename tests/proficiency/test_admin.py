@@ -40,9 +40,8 @@ def test_admin_shows_the_demo(client):
     devices = client.get(reverse("admin:proficiency_device_changelist")).content.decode()
     assert all(f"MEMS {i}" in devices for i in (1, 2, 3))
     points = client.get(reverse("admin:proficiency_measurementpoint_changelist")).content.decode()
-    # 81 of IMU-2024-DEMO, 27 of the open call, 24 of the earlier round IMU-2023-DEMO
-    assert "132 measurement points" in points
+    assert "108 measurement points" in points  # 81 of IMU-2024-DEMO, 27 of the open call
     results = client.get(reverse("admin:labs_result_changelist")).content.decode()
-    assert "1155 results" in results  # 891 + 264 of IMU-2023-DEMO
+    assert "891 results" in results
     participants = client.get(reverse("admin:labs_participant_changelist")).content.decode()
-    assert "24 participants" in participants  # 12 in each demo round
+    assert "12 participants" in participants
