@@ -114,6 +114,7 @@ def rounds(labs):
 def _z_used(score: Score) -> float:
     """The z that counts, decided here from the stored assigned value (ISO 13528 9.2.1)."""
     av = AssignedValue.objects.get(run=score.run, measurement_point=score.result.measurement_point)
+    assert av.sigma_pt is not None and score.z is not None and score.z_prime is not None
     return score.z_prime if av.standard_uncertainty > 0.3 * av.sigma_pt else score.z
 
 
@@ -167,8 +168,11 @@ def test_the_published_run_counts_not_a_later_one(labs, rounds):
     (r,) = [r for r in lab_history(labs["A"]).rounds if r.code == "R1"]
     assert r.run_id == rounds["runs"]["R1"].pk
     published = {s.result_id: _z_used(s) for s in Score.objects.filter(run=rounds["runs"]["R1"])}
-    mine = [e.z for p in lab_history(labs["A"]).points for e in p.entries if e.round_code == "R1"]
-    assert sorted(mine) == sorted(
+    mine = [e.z for p in lab_history(labs["A"]).points for e in p.entries
+            if e.round_code == "R1" and e.z is not None]  # fmt: skip
+    later_z = {_z_used(s) for s in Score.objects.filter(run=later)}
+    assert not later_z & set(published.values())  # σ_pt doubled: every z differs
+    assert len(mine) == 3 and sorted(mine) == sorted(
         v
         for s, v in published.items()
         if Result.objects.get(pk=s).submission.participant.code == "A1"
