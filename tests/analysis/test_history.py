@@ -342,3 +342,20 @@ def test_history_chart_is_an_svg_of_the_rounds():
     svg = history_chart(["R1", "R2"], [[0.5, -1.4], [0.2]], [[1.0], []])
     assert svg.startswith("<svg") and "R1" in svg and "R2" in svg
     assert history_chart(["R1", "R2"], [[0.5, -1.4], [0.2]], [[1.0], []]) == svg
+
+
+def test_the_security_world_history_leaks_nothing_of_lab_a(django_capture_on_commit_callbacks):
+    """A round published without a publication job (its status set, as data from before the
+    jobs) counts its latest succeeded run; lab A reads its code there, lab B never does."""
+    from tests.security.world import LAB_A_CODE, LAB_A_NAME, LAB_A_VALUE_TEXTS, build_world
+
+    world = build_world(django_capture_on_commit_callbacks)
+    Comparison.objects.filter(pk=world.c1.pk).update(status=PUBLISHED)
+    (r,) = lab_history(world.lab_a).rounds
+    assert (r.code, r.own_code, r.run_id) == (world.c1.code, LAB_A_CODE, world.run.pk)
+    own = world.client("a_staff").get("/lab/history/").content.decode()
+    assert f"<code>{LAB_A_CODE}</code>" in own
+    other = world.client("b_staff").get("/lab/history/").content.decode()
+    assert "<code>KB2</code>" in other and "<code>KB9</code>" not in other  # C2: not published
+    leaks = [t for t in (LAB_A_CODE, LAB_A_NAME, *LAB_A_VALUE_TEXTS) if t in other]
+    assert leaks == []
