@@ -263,13 +263,29 @@ def run_scores(run: AnalysisRun, filters: dict[str, str], order: str = "") -> Qu
     Each score carries ``z_is_prime`` and ``z_used``: ISO 13528 uses z′ instead of z where
     u(x_pt) > 0.3 σ_pt (9.5; docs/domain.md, the scores), the rule of
     ``analysis.core.scores``, read here from the point's assigned value in the run."""
+    qs = with_z_used(
+        Score.objects.filter(run=run).select_related(
+            "result__measurement_point__device", "result__submission__participant"
+        )
+    )
+    lookups = {SCORE_FILTERS[k]: v for k, v in filters.items() if k in SCORE_FILTERS and v}
+    qs = qs.filter(**lookups)
+    if order in SCORE_ORDERS:
+        qs = qs.annotate(abs_en=Abs("en"), abs_z_used=Abs("z_used"))
+        key = F(SCORE_ORDERS[order]).desc(nulls_last=True)
+        return qs.order_by(key, *POINT_ORDER_OF_SCORES)
+    return qs.order_by(*POINT_ORDER_OF_SCORES)
+
+
+def with_z_used(scores: QuerySet[Score]) -> QuerySet[Score]:
+    """``scores`` (of any runs) annotated with ``z_is_prime`` and ``z_used``, the z that
+    counts: z′ where u(x_pt) > 0.3 σ_pt at the point in the score's own run, else z
+    (ISO 13528:2022 9.2.1, 9.5; docs/domain.md §4)."""
     assigned = AssignedValue.objects.filter(
         run=OuterRef("run"), measurement_point=OuterRef("result__measurement_point")
     )
-    qs = (
-        Score.objects.filter(run=run)
-        .select_related("result__measurement_point__device", "result__submission__participant")
-        .annotate(
+    return (
+        scores.annotate(
             u_pt=Subquery(assigned.values("standard_uncertainty")[:1], output_field=FloatField()),
             sigma=Subquery(assigned.values("sigma_pt")[:1], output_field=FloatField()),
         )
@@ -284,13 +300,6 @@ def run_scores(run: AnalysisRun, filters: dict[str, str], order: str = "") -> Qu
             z_used=Case(When(z_is_prime=True, then=F("z_prime")), default=F("z")),
         )
     )
-    lookups = {SCORE_FILTERS[k]: v for k, v in filters.items() if k in SCORE_FILTERS and v}
-    qs = qs.filter(**lookups)
-    if order in SCORE_ORDERS:
-        qs = qs.annotate(abs_en=Abs("en"), abs_z_used=Abs("z_used"))
-        key = F(SCORE_ORDERS[order]).desc(nulls_last=True)
-        return qs.order_by(key, *POINT_ORDER_OF_SCORES)
-    return qs.order_by(*POINT_ORDER_OF_SCORES)
 
 
 def z_used_name(score: Score) -> str | None:

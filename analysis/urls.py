@@ -4,7 +4,7 @@ participants (``lab_*`` names under ``/results/``)."""
 
 from django.urls import path
 
-from analysis import archive_views, consistency_views, views
+from analysis import archive_views, consistency_views, history_views, views
 
 C = "coordinator/<slug:code>/"
 P = "results/<slug:code>/"
@@ -12,6 +12,8 @@ COORD = {"audience": views.COORDINATOR}
 LAB = {"audience": views.PARTICIPANT}
 
 urlpatterns = [
+    # a laboratory's history across the published rounds (docs/domain.md §4.1)
+    path("lab/history/", history_views.lab_history_page, name="lab_history"),
     path(C + "analysis/run/", views.run_start, name="run_start"),
     path(C + "analysis/runs/", views.runs, name="runs"),
     path(C + "analysis/runs/<int:pk>/", views.run_detail, name="run"),

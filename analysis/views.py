@@ -31,6 +31,8 @@ from analysis import charts
 from analysis.archive import archive_shown
 from analysis.chart_cache import cached_chart
 from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
+from analysis.history import lab_history
+from analysis.history_views import trend_chart
 from analysis.models import AnalysisRun, AssignedValue, Publication, RoundArchive, Score
 from analysis.performance import lab_performance, performance
 from analysis.publication import active_publication, publication_start
@@ -47,7 +49,7 @@ from analysis.selectors import (
 )
 from analysis.services import analysis_run_cancel, analysis_run_start
 from common.errors import ApplicationError
-from labs.access import coordinated, published_participation
+from labs.access import coordinated, coordinated_comparisons, published_participation
 from labs.importers import write_table
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.selectors import POINT_ORDER
@@ -326,14 +328,21 @@ def performance_page(request: AuthenticatedHttpRequest, code: str, audience: str
 def participant_performance(
     request: AuthenticatedHttpRequest, code: str, lab: str, audience: str
 ) -> HttpResponse:
-    """Coordinator: one participant's summary, as the participant sees it on its results."""
+    """Coordinator: one participant's summary, as the participant sees it on its results,
+    and its laboratory's history over the published rounds this coordinator coordinates
+    (docs/domain.md §4.1)."""
     viewer = _viewer(request, code, audience)
     if viewer.run is None:
         return _render(request, viewer, "participant_performance", {})
-    if not viewer.comparison.participants.filter(code=lab).exists():
+    participant = viewer.comparison.participants.select_related("laboratory").filter(code=lab)
+    found = participant.first()
+    if found is None:
         raise Http404(f"{code} has no participant {lab}.")
+    history = lab_history(found.laboratory, within=coordinated_comparisons(request.user))
     context = {"lab": lab, "summary": lab_performance(viewer.run, lab),
-               "scores_url": viewer.url("scores")}  # fmt: skip
+               "scores_url": viewer.url("scores"), "history": history,
+               "chart": trend_chart(history),
+               "within_note": "that you coordinate"}  # fmt: skip
     return _render(request, viewer, "participant_performance", context)
 
 

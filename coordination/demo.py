@@ -7,8 +7,11 @@ synthetic laboratories add plausible scatter on both benches; one of them
 (``Outlier Metrology Services``) is a clear outlier on MEMS 2.  A second round,
 ``IMU-2025-CALL``, is in preparation with its call for participation open and one pending
 application (lab03's, by its manager), so a new user sees the enrolment
-(docs/lifecycles.md §7) from both sides.  Everything is created idempotently: running the
-loader twice leaves the same rows.
+(docs/lifecycles.md §7) from both sides.  An earlier round, ``IMU-2023-DEMO``, is published:
+the same laboratories (with other codes) at a subset of the points, analysed by a run of the
+service and published by its publication job, so every laboratory has a history across rounds
+(docs/domain.md §4.1).  Everything is created idempotently: running the loader twice
+leaves the same rows.
 """
 
 from __future__ import annotations
@@ -30,6 +33,8 @@ from django.db import transaction
 from django.utils import timezone
 
 from analysis.core.signals import synthetic
+from analysis.publication import active_publication, publication_start
+from analysis.services import analysis_run_execute, analysis_run_start
 from labs.enrolment import enrolment_apply
 from labs.models import Enrolment, Laboratory, Membership, Participant, Result, Submission
 from labs.raw_services import Upload, raw_record_upload
@@ -43,12 +48,21 @@ from proficiency.models import (
     MeasurementPoint,
     SigmaPtMode,
 )
-from proficiency.services import comparison_apply_template
+from proficiency.services import comparison_apply_template, measurement_points_generate
 
 if TYPE_CHECKING:
     from analysis.core.signals.records import Record
 
 DEMO_CODE = "IMU-2024-DEMO"
+#: the published round before it: the laboratories' history (docs/domain.md §4.1)
+PREVIOUS_CODE = "IMU-2023-DEMO"
+#: whether ``load_demo`` makes that round: the tests turn it off unless they ask for it
+#: (tests/conftest.py; its publication renders 13 PDF reports, seconds per demo loaded)
+EARLIER_ROUND = True
+#: its points: two of the devices, the frequencies both benches share, tangential only
+PREVIOUS_DEVICES = (1, 2)
+PREVIOUS_FREQUENCIES = (5.0, 10.0)
+PREVIOUS_DIRECTIONS = ("vertical", "tangential")
 #: the round whose call for participation is open in the demo
 CALL_CODE = "IMU-2025-CALL"
 #: its enrolment closes, and its results are due, this long after the demo is first loaded
@@ -133,11 +147,12 @@ def reproduction_results(
 
 
 def synthetic_results(
-    points: list[MeasurementPoint], lab_index: int, outlier: bool
+    points: list[MeasurementPoint], lab_index: int, outlier: bool, seed: int = 20240
 ) -> list[tuple[MeasurementPoint, float, float]]:
-    """Plausible results: the two benches' mean as truth, lab bias ~0.4 %, noise ~0.25 %."""
+    """Plausible results: the two benches' mean as truth, lab bias ~0.4 %, noise ~0.25 %
+    (``seed``: one per round, so each round draws its own)."""
     t1 = table1()
-    rng = np.random.default_rng(20240 + lab_index)
+    rng = np.random.default_rng(seed + lab_index)
     bias = rng.normal(0.0, 0.004)
     rel_u = rng.uniform(0.006, 0.012)  # standard uncertainty 0.6–1.2 %
     out = []
@@ -156,6 +171,7 @@ def synthetic_results(
 class DemoSummary:
     comparison: Comparison
     call: Comparison | None = None
+    previous: Comparison | None = None
     created_users: dict[str, str] = field(default_factory=dict)  # username -> password
     existing_users: list[str] = field(default_factory=list)
 
@@ -181,16 +197,19 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
     if not admin.is_superuser:
         admin.is_superuser = True
         admin.save(update_fields=["is_superuser"])
+    labs: list[tuple[Laboratory, Scope | None, bool]] = []  # (lab, scope, outlier)
     for name, country, username in (LINEAR_LAB, CURVILINEAR_LAB):
         bench = "linear" if username == "linear-lab" else "curvilinear"
         # each bench laboratory measures its own bench only (docs/domain.md §10)
         scope = Scope(benches=[bench])
         participant = _lab(summary, comparison, name, country, username, password, scope)
+        labs.append((participant.laboratory, scope, False))
         _submit(participant, reproduction_results(points, bench), Submission.Source.FILE)
         if bench == "curvilinear":  # its software applies to the open call (below)
             curvilinear_lab = participant.laboratory
     for i, (name, country) in enumerate(SYNTHETIC_LABS, start=3):
         participant = _lab(summary, comparison, name, country, f"lab{i:02d}", password)
+        labs.append((participant.laboratory, None, name == OUTLIER_LAB))
         if i == MANAGED_LAB:  # its manager creates the API keys its software submits with
             manager = _user(summary, f"lab{i:02d}-manager", password)
             Membership.objects.get_or_create(
@@ -204,7 +223,71 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
         if name == RAW_DATA_LAB:
             _raw_records(participant)
     summary.call = _call(coordinator, *applicant, curvilinear_lab)
+    if EARLIER_ROUND:
+        summary.previous = _previous(coordinator, labs)
     return summary
+
+
+def _previous(coordinator: Any, labs: list[tuple[Laboratory, Scope | None, bool]]) -> Comparison:
+    """The round a year before: created closed with every laboratory's accepted results,
+    analysed by a run of the service (executed here, as a worker would: the task sent after
+    commit finds it done), then its publication asked for as the Publish button asks: the
+    job's task, sent after commit, renders the final reports and publishes (at once with
+    the quick start's eager Celery, in the background with a worker; a test's transaction
+    never commits, so there the round stays analysed with its publication pending until a
+    test executes it).  A round published, or being published, is left as it is."""
+    previous, created = Comparison.objects.get_or_create(
+        code=PREVIOUS_CODE,
+        defaults={
+            "title": "MEMS accelerometer sensitivity, first round (demo, published)",
+            "description": (
+                "The round before IMU-2024-DEMO: two LSM6DSR accelerometers on the linear bench "
+                "and on the curvilinear bench (tangential) at 5 and 10 Hz."
+            ),
+            "protocol": "linear_and_curvilinear",
+            "status": ComparisonStatus.CLOSED,
+            "submission_deadline": dt.datetime(2023, 6, 30, 23, 59, tzinfo=dt.UTC),
+            "assigned_value_method": AssignedValueMethod.NOMINAL,
+            "sigma_pt_mode": SigmaPtMode.RELATIVE,
+            "sigma_pt_value": 1.0,
+            "authorised_by_name": "Demo Quality Manager",
+            "authorised_by_role": "Quality manager of the PT provider (demonstration)",
+        },
+    )
+    previous.coordinators.add(coordinator)
+    if created:
+        _previous_results(previous, labs)
+    if previous.status == ComparisonStatus.CLOSED:
+        run = analysis_run_start(comparison=previous, user=coordinator)
+        analysis_run_execute(run_id=run.pk)
+        previous.refresh_from_db()
+    if previous.status == ComparisonStatus.ANALYSED and active_publication(previous) is None:
+        publication_start(comparison=previous, user=coordinator)
+    return previous
+
+
+def _previous_results(
+    previous: Comparison, labs: list[tuple[Laboratory, Scope | None, bool]]
+) -> None:
+    devices = _devices(previous, PREVIOUS_DEVICES, serial="LSM6DSR-2023")
+    for plan in protocols.TEMPLATES["linear_and_curvilinear"].benches:
+        measurement_points_generate(
+            comparison=previous, devices=devices, axes=protocols.AXES,
+            frequencies_hz=[f for f in plan.frequencies_hz if f in PREVIOUS_FREQUENCIES],
+            benches=[plan.bench],
+            directions=[d for d in plan.directions if d in PREVIOUS_DIRECTIONS],
+            amplitudes=plan.amplitudes,
+        )  # fmt: skip
+    points = list(previous.measurement_points.select_related("device"))
+    submitted = dt.datetime(2023, 6, 15, 12, 0, tzinfo=dt.UTC)
+    for i, (lab, scope, outlier) in enumerate(labs, start=1):
+        (participant,) = participants_invite(
+            comparison=previous, laboratories=[lab], scope=scope, notify=False
+        )
+        benches = scope.benches if scope is not None else None
+        mine = [p for p in points if not benches or p.bench in benches]
+        rows = synthetic_results(mine, i, outlier, seed=20230)
+        _submit(participant, rows, Submission.Source.FILE, submitted)
 
 
 def _call(
@@ -358,6 +441,7 @@ def _submit(
     participant: Participant,
     rows: list[tuple[MeasurementPoint, float, float]],
     source: str,
+    submitted: dt.datetime = dt.datetime(2024, 6, 15, 12, 0, tzinfo=dt.UTC),
 ) -> None:
     if participant.submissions.exists():
         return
@@ -366,8 +450,8 @@ def _submit(
         version=1,
         status=Submission.Status.ACCEPTED,
         source=source,
-        submitted_at=dt.datetime(2024, 6, 15, 12, 0, tzinfo=dt.UTC),
-        decided_at=dt.datetime(2024, 7, 1, 9, 0, tzinfo=dt.UTC),
+        submitted_at=submitted,
+        decided_at=submitted + dt.timedelta(days=16, hours=-3),
     )
     Result.objects.bulk_create(
         Result(

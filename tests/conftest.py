@@ -48,6 +48,22 @@ def isolated_media_root(request, tmp_path):
     settings.MEDIA_ROOT = tmp_path / "media"
 
 
+@pytest.fixture(autouse=True)
+def demo_without_earlier_round(request, monkeypatch):
+    """The demo loads without its published earlier round, IMU-2023-DEMO, whose analysis and
+    publication (13 PDF reports, at commit) would cost every test that loads the demo seconds
+    and add rows to what it counts; a test of that round asks for ``demo_earlier_round``."""
+    if not request.config.pluginmanager.hasplugin("django"):
+        return
+    monkeypatch.setattr("coordination.demo.EARLIER_ROUND", False)
+
+
+@pytest.fixture
+def demo_earlier_round(monkeypatch):
+    """``load_demo`` makes the earlier round too, as ``make run`` does."""
+    monkeypatch.setattr("coordination.demo.EARLIER_ROUND", True)
+
+
 @pytest.fixture
 def comparison(db):
     from tests.factories import ComparisonFactory

@@ -43,6 +43,9 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("a_staff", f"/lab/comparisons/{C1}/results/", 13, ""),
     ("a_staff", f"/lab/comparisons/{C1}/submissions/", 10, ""),
     ("a_staff", f"/lab/comparisons/{C1}/raw-data/", 13, ""),
+    # the laboratory's history: its laboratories, participations, published runs (the
+    # publications, then the runs of rounds published without one) and scores
+    ("a_staff", "/lab/history/", 14, "published"),
     ("a_staff", f"/reports/{C1}/", 11, "published"),
     # + its performance summary: the grouped counts, the maxima, the largest |En| and |z|
     ("a_staff", f"/results/{C1}/", 23, "published"),
@@ -65,6 +68,8 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("coord1", f"/coordinator/{C1}/scores/", 19, ""),
     ("coord1", f"/coordinator/{C1}/archive/status/", 8, ""),
     ("coord1", f"/coordinator/{C1}/performance/", 19, ""),
+    # + the participant's laboratory's history over the coordinator's published rounds
+    ("coord1", f"/coordinator/{C1}/performance/{LAB_A_CODE}/", 20, "published"),
     ("coord1", f"/coordinator/{C1}/raw-data/", 10, ""),
     ("coord1", f"/coordinator/{C1}/kits/", 10, ""),
     ("coord1", f"/reports/{C1}/", 11, ""),

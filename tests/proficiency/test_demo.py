@@ -10,7 +10,7 @@ from django.contrib.auth import get_user_model
 from django.core.management import call_command
 from django.db.models import Model
 
-from coordination.demo import CALL_CODE, DEMO_CODE, OUTLIER_LAB
+from coordination.demo import CALL_CODE, DEMO_CODE, LINEAR_LAB, OUTLIER_LAB, PREVIOUS_CODE
 from labs.models import Enrolment, Laboratory, Membership, Notice, Participant, Result, Submission
 from labs.selectors import scope_text
 from proficiency.models import Comparison, Device, MeasurementPoint
@@ -36,25 +36,28 @@ def counts() -> dict[str, int]:
     return {m.__name__: m._default_manager.count() for m in models}
 
 
+FIRST = {
+    # the demo round, and IMU-2025-CALL with its call open (1 device on both benches:
+    # 9 linear and 18 curvilinear points)
+    "Comparison": 2,
+    "Device": 3 + 1,
+    "MeasurementPoint": 81 + 27,
+    "Laboratory": 12,
+    "Membership": 13,
+    "Participant": 12,
+    "Submission": 12,
+    # 2 bench labs (27 + 54 points) and 10 labs measuring all 81 points
+    "Result": 27 + 54 + 10 * 81,
+    "User": 15,
+    "Enrolment": 2,
+}
+
+
 def test_load_demo_twice_gives_the_same_rows():
     out = StringIO()
     call_command("load_demo", password="demo-password-1", stdout=out)
     first = counts()
-    assert first == {
-        # the demo round, and IMU-2025-CALL with its call open (1 device on both benches:
-        # 9 linear and 18 curvilinear points)
-        "Comparison": 2,
-        "Device": 3 + 1,
-        "MeasurementPoint": 81 + 27,
-        "Laboratory": 12,
-        "Membership": 13,
-        "Participant": 12,
-        "Submission": 12,
-        # 2 bench labs (27 + 54 points) and 10 labs measuring all 81 points
-        "Result": 27 + 54 + 10 * 81,
-        "User": 15,
-        "Enrolment": 2,
-    }
+    assert first == FIRST
     assert "coordinator" in out.getvalue() and "demo-password-1" in out.getvalue()
     out2 = StringIO()
     call_command("load_demo", stdout=out2)
@@ -172,3 +175,56 @@ def test_the_two_bench_labs_have_their_bench_as_scope():
         assert set(reported.values_list("measurement_point_id", flat=True)) == points
     synthetic = Participant.objects.get(comparison=comparison, laboratory__name=OUTLIER_LAB)
     assert participant_points(synthetic).count() == n_points
+
+
+def test_the_previous_round_is_published_by_its_job_and_makes_a_history(
+    demo_earlier_round, django_capture_on_commit_callbacks
+):
+    """IMU-2023-DEMO: analysed by a run of the service, published by its publication job (here
+    run at commit, as the quick start's eager Celery runs it), with its final reports and
+    notices; then every laboratory has a history, joined through it across its codes."""
+    from analysis.history import lab_history
+    from analysis.models import Publication, Report
+    from analysis.services import analysis_run_execute, analysis_run_start
+
+    with django_capture_on_commit_callbacks(execute=True):
+        call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    previous = Comparison.objects.get(code=PREVIOUS_CODE)
+    job = Publication.objects.get(comparison=previous)
+    assert (previous.status, job.status) == ("published", "succeeded"), job.error
+    assert Report.objects.filter(comparison=previous, status="final").count() == 1 + 12
+    assert Notice.objects.filter(comparison=previous, kind="published").count() == 12
+    assert not Notice.objects.filter(comparison__code=DEMO_CODE).exists()
+    demo = Comparison.objects.get(code=DEMO_CODE)
+    run = analysis_run_start(comparison=demo, user=None)
+    assert analysis_run_execute(run_id=run.pk) == "succeeded"
+    Comparison.objects.filter(pk=demo.pk).update(status="published")
+    lab = Laboratory.objects.get(name=LINEAR_LAB[0])
+    codes = {c: Participant.objects.get(comparison__code=c, laboratory=lab).code
+             for c in (PREVIOUS_CODE, DEMO_CODE)}  # fmt: skip
+    history = lab_history(lab)
+    assert [(r.code, r.own_code) for r in history.rounds] == list(codes.items())
+    assert [(r.en_scored, r.z_scored) for r in history.rounds] == [(12, 12), (27, 27)]
+    (point,) = [
+        p for p in history.points if p.key.label == "LSM6DSR, X, 5 Hz, linear vertical, 10 m/s²"
+    ]
+    assert [(e.round_code, e.device, e.own_code) for e in point.entries] == [
+        (PREVIOUS_CODE, "MEMS 1", codes[PREVIOUS_CODE]),
+        (PREVIOUS_CODE, "MEMS 2", codes[PREVIOUS_CODE]),
+        (DEMO_CODE, "MEMS 1", codes[DEMO_CODE]),
+        (DEMO_CODE, "MEMS 2", codes[DEMO_CODE]),
+        (DEMO_CODE, "MEMS 3", codes[DEMO_CODE]),
+    ]
+    assert point.combined is not None and point.combined.n == 5
+    assert {p.key.bench for p in history.points} == {"linear"}  # its scope, in both rounds
+    assert counts() == {
+        **FIRST,  # the demo round and the open call, as without it, and IMU-2023-DEMO: 2
+        # devices × 3 axes × 5 and 10 Hz, linear vertical and curvilinear tangential; the
+        # bench labs 12 points each, the others all 24
+        "Comparison": 3, "Device": 4 + 2, "MeasurementPoint": 108 + 24, "Participant": 24,
+        "Submission": 24, "Result": 891 + 2 * 12 + 10 * 24,
+    }  # fmt: skip
+    call_command("load_demo", stdout=StringIO())
+    assert (
+        counts()["Result"] == 1155 and Publication.objects.filter(comparison=previous).count() == 1
+    )

@@ -119,6 +119,12 @@ TABLE: dict[str, Row] = {
         get="302 200 200 404 404 404 302 302 404",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    # the user's own laboratory's history (docs/domain.md §4.1): its members only; a person
+    # of no laboratory (the coordinators, the superuser) has none: 404
+    "lab/history/": Row(
+        get="302 200 200 200 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
     # the inbox's buttons: POST only; one notice of the user's own labs, else 404
     "lab/notices/<int:pk>/read/": Row(
         get="302 405 405 405 405 405 302 302 405",

@@ -1,4 +1,5 @@
-"""python manage.py load_demo — the demo comparison IMU-2024-DEMO (idempotent)."""
+"""python manage.py load_demo — the demo comparison IMU-2024-DEMO, the open call IMU-2025-CALL
+and the published round before them, IMU-2023-DEMO (idempotent)."""
 
 from django.core.management.base import BaseCommand
 
@@ -7,8 +8,9 @@ from coordination.demo import load_demo
 
 class Command(BaseCommand):
     help = (
-        "Create the demo comparison IMU-2024-DEMO with 12 laboratories, and the round "
-        "IMU-2025-CALL with its call for participation open (idempotent)."
+        "Create the demo comparison IMU-2024-DEMO with 12 laboratories, the round "
+        "IMU-2025-CALL with its call for participation open, and the same laboratories' "
+        "published round IMU-2023-DEMO, their history (idempotent)."
     )
 
     def add_arguments(self, parser):
@@ -33,6 +35,14 @@ class Command(BaseCommand):
                 f"{pending} pending application{'' if pending == 1 else 's'} (lab03-manager "
                 "for the linear bench, the curvilinear laboratory's software for the "
                 "curvilinear one; the coordinator accepts or declines them)."
+            )
+        previous = summary.previous
+        if previous is not None:
+            self.stdout.write(
+                f"Earlier round {previous.code}: {previous.measurement_points.count()} "
+                f"measurement points, {previous.participants.count()} participants, "
+                f"{previous.get_status_display().lower()} (its publication is a job, done "
+                "when the task queue runs it; each laboratory's history is at /lab/history/)."
             )
         if summary.created_users:
             self.stdout.write("Demo logins (shown once; write them down):")
