@@ -30,7 +30,7 @@ class PointData:
     en: list[float]  # NaN: not scored
     z: list[float]  # the z that counts (z or z′), NaN where none
     z_name: str  # "z" or "z′"
-    in_assigned: list[bool]
+    in_assigned: list[bool]  # inside x_pt with the correlation correction (as En)
     assigned: AssignedValue
 
     def doe(self) -> graphs.DoEData:
@@ -58,7 +58,9 @@ def point_data(run: AnalysisRun, point: MeasurementPoint) -> PointData:
         en=[_nan(s.en) for s in found],
         z=[_nan(getattr(s, "z_used", None)) for s in found],
         z_name=Z_NAMES["z_prime" if primes else "z"],
-        in_assigned=[bool(s.in_assigned_value) for s in found],
+        # the correlation correction where the score's En had it (tried, or failed: a sole
+        # contributor); a robust consensus takes every result without it (docs/domain.md §5.4)
+        in_assigned=[s.correlation_applied or s.correlation_failed for s in found],
         assigned=assigned,
     )
 

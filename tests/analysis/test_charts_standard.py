@@ -215,3 +215,17 @@ def test_every_chart_has_a_caption():
 
     assert set(NAMES) == set(std.CAPTIONS)
     assert all(len(text) > 60 for text in std.CAPTIONS.values())
+
+
+@pytest.mark.parametrize("n", [1, 2])
+def test_overview_and_mandel_of_one_or_two_labs(n):
+    labels = [f"L{i}" for i in range(n)]
+    overview = std.lab_overview_chart(["X 5 Hz up"] * n, ["MEMS 1 · linear"] * n, [0.1] * n,
+                                      [math.nan] * n, code="L0")  # fmt: skip
+    assert "no z" in overview
+    why = "h needs at least 3 laboratories"
+    mandel = std.mandel_chart(labels, ["p"], [[math.nan]] * n, [math.nan], [math.nan],
+                              statistic="h", reasons=[why])  # fmt: skip
+    assert f"not available: {why}" in mandel
+    for svg in (overview, mandel):
+        ET.fromstring(svg)
