@@ -118,7 +118,7 @@ def _limits(ax: Axes, lines: Sequence[tuple[float, str]], values: np.ndarray, le
 
 
 def _sorted_bars(
-    labels: Sequence[str], scores: Sequence[float], *, title: str, name: str,
+    labels: Sequence[str], scores: ArrayLike, *, title: str, name: str,
     highlight: str | None, colour: Callable[[float], str], lines: Sequence[tuple[float, str]],
     least: float,
 ) -> Figure:  # fmt: skip
@@ -143,7 +143,7 @@ def _sorted_bars(
 
 @_with_rc
 def z_figure(
-    labels: Sequence[str], z: Sequence[float], *, title: str, name: str = "z",
+    labels: Sequence[str], z: ArrayLike, *, title: str, name: str = "z",
     highlight: str | None = None,
 ) -> Figure:  # fmt: skip
     """z (or z′: ``name``) per lab sorted (``core.graphs.sorted_scores``), ±2 and ±3 lines;
@@ -154,7 +154,7 @@ def z_figure(
 
 @_with_rc
 def en_bar_figure(
-    labels: Sequence[str], en: Sequence[float], *, title: str, limit: float = 1.0,
+    labels: Sequence[str], en: ArrayLike, *, title: str, limit: float = 1.0,
     highlight: str | None = None,
 ) -> Figure:  # fmt: skip
     """Signed En per lab sorted, ±limit lines, bars outside red."""
@@ -172,7 +172,7 @@ en_bar_chart = _svg_of(en_bar_figure)
 
 @_with_rc
 def lab_overview_figure(
-    points: Sequence[str], groups: Sequence[str], en: Sequence[float], z: Sequence[float],
+    points: Sequence[str], groups: Sequence[str], en: ArrayLike, z: ArrayLike,
     *, code: str, limit: float = 1.0, z_name: str = "z or z′",
 ) -> Figure:  # fmt: skip
     """One lab's En (top) and z (bottom) at each of its points, in the order given, grouped by
@@ -225,7 +225,7 @@ lab_overview_chart = _svg_of(lab_overview_figure)
 
 @_with_rc
 def youden_figure(
-    labels: Sequence[str], x: Sequence[float], y: Sequence[float], *, assigned_x: float,
+    labels: Sequence[str], x: ArrayLike, y: ArrayLike, *, assigned_x: float,
     assigned_y: float, x_label: str, y_label: str, unit: str, highlight: str | None = None,
 ) -> Figure:  # fmt: skip
     """Each lab's (x, y) at two points, the assigned values' cross lines, the 45° line through
@@ -264,7 +264,7 @@ def youden_figure(
 
 
 def _youden(
-    x: Sequence[float], y: Sequence[float], assigned_x: float, assigned_y: float
+    x: ArrayLike, y: ArrayLike, assigned_x: float, assigned_y: float
 ) -> graphs.YoudenData | None:
     methods: tuple[Literal["robust", "classical"], ...] = ("robust", "classical")
     for method in methods:
@@ -352,7 +352,7 @@ mandel_chart = _svg_of(mandel_figure)
 
 @_with_rc
 def density_figure(
-    values: Sequence[float], *, assigned_value: float, assigned_expanded_uncertainty: float,
+    values: ArrayLike, *, assigned_value: float, assigned_expanded_uncertainty: float,
     title: str, unit: str, own_value: float | None = None,
 ) -> Figure:  # fmt: skip
     """The kernel density of one point's results (``core.graphs.kernel_density``), the
@@ -391,7 +391,7 @@ density_chart = _svg_of(density_figure)
 
 @_with_rc
 def doe_figure(
-    labels: Sequence[str], d: Sequence[float], expanded: Sequence[float], *, title: str,
+    labels: Sequence[str], d: ArrayLike, expanded: ArrayLike, *, title: str,
     unit: str, highlight: str | None = None,
 ) -> Figure:  # fmt: skip
     """d_i ± U(d_i) per lab (``core.graphs.doe_data``), key-comparison style, zero line."""

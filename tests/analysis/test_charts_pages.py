@@ -110,7 +110,9 @@ def test_coordinator_page_shows_every_chart_with_caption_and_downloads(client, r
     assert '<select name="pair"' in page
     for link in links:
         response = client.get(link.replace("&amp;", "&"))
-        name, ext = re.search(r"/charts/([\w-]+)\.(svg|png)", link).groups()
+        found = re.search(r"/charts/([\w-]+)\.(svg|png)", link)
+        assert found is not None
+        name, ext = found.groups()
         assert response.status_code == 200, link
         assert response["Content-Type"] == {"svg": "image/svg+xml", "png": "image/png"}[ext]
         disposition = response["Content-Disposition"]

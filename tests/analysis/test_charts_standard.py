@@ -26,6 +26,18 @@ def ticks(ax) -> list[str]:
     return [t.get_text() for t in ax.get_xticklabels()]
 
 
+def xs(line) -> np.ndarray:
+    return np.asarray(line.get_xdata(), dtype=float)
+
+
+def ys(line) -> np.ndarray:
+    return np.asarray(line.get_ydata(), dtype=float)
+
+
+def hex_of(colour) -> str:
+    return to_hex(colour)
+
+
 def bars(ax) -> tuple[list[float], list[str]]:
     return [p.get_height() for p in ax.patches], [to_hex(p.get_facecolor()) for p in ax.patches]
 
@@ -40,7 +52,7 @@ def test_z_bars_sorted_with_signal_colours_and_the_readers_own():
     assert heights == pytest.approx(sorted(v for v in Z if not math.isnan(v)))
     # -2.5 warning (amber), -0.1 the reader's own, 0.4 and 1.9 plain, 3.2 action (red)
     assert colours == [charts.WARN, charts.OWN, charts.LAB, charts.LAB, charts.BAD]
-    lines = sorted(round(line.get_ydata()[0], 6) for line in ax.get_lines())
+    lines = sorted(round(float(ys(line)[0]), 6) for line in ax.get_lines())
     assert lines == [-3, -2, 0, 2, 3]
     assert ax.get_ylabel() == "z′" and "not scored: 1" in ax.get_xlabel()
     svg = charts.render(fig, "inline")
@@ -79,9 +91,9 @@ def test_youden_ellipse_is_the_95_percent_region_of_the_robust_covariance():
     assert d2 == pytest.approx(np.full(len(v), -2 * math.log(0.05)), rel=1e-3)
     assert "ellipse (robust)" in str(ring.get_label())
     crosses = [line for line in ax.get_lines() if line.get_linestyle() == "--"]
-    assert {line.get_xdata()[0] for line in crosses} >= {100.0}
-    own = [p for p in ax.collections if to_hex(p.get_facecolor()[0]) == charts.OWN]
-    assert own and own[0].get_offsets().tolist() == [[x[3], y[3]]]
+    assert {float(xs(line)[0]) for line in crosses} >= {100.0}
+    own = [p for p in ax.collections if hex_of(p.get_facecolor()[0]) == charts.OWN]
+    assert own and np.asarray(own[0].get_offsets()).tolist() == [[x[3], y[3]]]
     ET.fromstring(charts.render(fig, "inline"))
 
 
@@ -129,14 +141,14 @@ def test_density_is_the_gaussian_kde_with_the_robust_bandwidth():
     reference = stats.gaussian_kde(x, bw_method=h / np.std(x, ddof=1))(grid)
     assert f == pytest.approx(reference, rel=1e-3)
     own = next(line for line in ax.get_lines() if line.get_label() == "your result")
-    assert to_hex(own.get_color()) == charts.OWN and own.get_xdata()[0] == x[2]
+    assert hex_of(own.get_color()) == charts.OWN and xs(own)[0] == x[2]
 
 
 def test_doe_bars_are_d_with_U():
     d, big_u = [1.0, -2.0, 0.5], [1.5, 1.0, 2.0]
     fig = std.doe_figure(LABS[:3], d, big_u, title="t", unit="mV", highlight="L02")
     ax = fig.axes[0]
-    points = {to_hex(line.get_color()): line.get_ydata().tolist() for line in ax.get_lines()
+    points = {hex_of(line.get_color()): ys(line).tolist() for line in ax.get_lines()
               if line.get_marker() == "o"}  # fmt: skip
     assert points == {charts.LAB: [1.0, 0.5], charts.OWN: [-2.0]}
     segments = [s for c in ax.collections if isinstance(c, LineCollection)
