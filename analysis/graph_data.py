@@ -75,24 +75,27 @@ def run_points(run: AnalysisRun) -> list[MeasurementPoint]:
 
 
 def point_pairs(points: list[MeasurementPoint]) -> list[tuple[str, str]]:
-    """The Youden pairs worth drawing, as (``"<pk>-<pk>"``, label): the same device point on
-    the two benches first, then two devices at the same axis, frequency, bench and direction."""
-    out: list[tuple[str, str]] = []
+    """The Youden pairs worth drawing, as (``"<pk>-<pk>"``, label): the same device, axis
+    and frequency on the two benches or in two directions first (the benches have their
+    own directions), then two devices at the same axis, frequency, bench and direction."""
+    ranked: list[tuple[int, str, str]] = []
     by_key: dict[tuple, list[MeasurementPoint]] = {}
     for p in points:
         name, axis, f, bench, direction = p.key[:5]
-        by_key.setdefault(("bench", name, axis, f, direction), []).append(p)
+        by_key.setdefault(("bench", name, axis, f), []).append(p)
         by_key.setdefault(("device", axis, f, bench, direction), []).append(p)
-    for (kind, *_), group in sorted(by_key.items(), key=lambda kv: kv[0][0]):
+    for (kind, *_), group in by_key.items():
         for i, a in enumerate(group):
             for b in group[i + 1 :]:
-                out.append((f"{a.pk}-{b.pk}", _pair_label(kind, a, b)))
-    return out
+                rank = 2 if kind == "device" else int(a.bench == b.bench)  # benches first
+                ranked.append((rank, f"{a.pk}-{b.pk}", _pair_label(kind, a, b)))
+    ranked.sort(key=lambda r: r[0])  # stable: the points' order within a rank
+    return [(key, label) for _, key, label in ranked]
 
 
 def _pair_label(kind: str, a: MeasurementPoint, b: MeasurementPoint) -> str:
     if kind == "bench":
-        return f"{point_label(a.key, sep=' · ')} vs {b.bench} bench"
+        return f"{point_label(a.key, sep=' · ')} vs {b.bench} {b.direction}"
     return f"{point_label(a.key, sep=' · ')} vs {b.device.name}"
 
 
