@@ -86,7 +86,7 @@ def charts_page(request: AuthenticatedHttpRequest, code: str, audience: str) -> 
     point = form.chosen()
     pair_form = PairForm(request.GET, pairs=point_pairs(points))
     by_pk = {p.pk: p for p in points}
-    pair = pair_form.chosen()
+    pair = pair_form.chosen(point.pk if point else None)
     context = {
         "form": form,
         "point": point,
@@ -133,7 +133,8 @@ def _spec(viewer: Viewer, chart: str, query: QueryDict) -> specs.Spec:
         return specs.overview_spec(viewer, _overview_lab(viewer, query))
     points = run_points(viewer.run)
     if chart == "youden":
-        pair = PairForm(query, pairs=point_pairs(points)).chosen()
+        point = PointForm(query, points=points).chosen()
+        pair = PairForm(query, pairs=point_pairs(points)).chosen(point.pk if point else None)
         if pair is None:
             raise Http404("This run has no pair of points for a Youden plot.")
         by_pk = {p.pk: p for p in points}

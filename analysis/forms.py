@@ -132,10 +132,12 @@ class PairForm(BootstrapMixin, forms.Form):
         cast(forms.ChoiceField, self.fields["pair"]).choices = pairs
         self.pairs = dict(pairs)
 
-    def chosen(self) -> tuple[int, int] | None:
-        """The chosen pair's two point ids, else the first pair's (None: no pair)."""
+    def chosen(self, point: int | None = None) -> tuple[int, int] | None:
+        """The chosen pair's two point ids, else the first pair of ``point`` (the chosen
+        point), else the first pair (None: no pair)."""
         key = self.cleaned_data.get("pair") if self.is_valid() else None
-        key = key or next(iter(self.pairs), None)
+        mine = (k for k in self.pairs if point is not None and str(point) in k.split("-"))
+        key = key or next(mine, None) or next(iter(self.pairs), None)
         if key is None:
             return None
         a, b = key.split("-")

@@ -110,6 +110,8 @@ def test_coordinator_page_shows_every_chart_with_caption_and_downloads(client, r
     links = re.findall(r'href="(/coordinator/[^"]*/charts/[^"]+\.(?:svg|png)[^"]*)"', page)
     assert len(links) == 2 * (len(NAMES) - 1)
     assert '<select name="pair"' in page
+    pair = re.search(r"charts/youden\.svg\?pair=(\d+)-(\d+)", page)
+    assert pair and str(av.measurement_point_id) in pair.groups()  # a pair of the point
     for link in links:
         response = client.get(link.replace("&amp;", "&"))
         found = re.search(r"/charts/([\w-]+)\.(svg|png)", link)
