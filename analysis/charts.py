@@ -32,6 +32,8 @@ OWN = "#d63384"  # the reader's own lab: the same colour in every chart
 LAB = "#1f3a5f"
 BAND = "#9ec5fe"
 BAD = "#dc3545"
+WARN = "#e0a800"  # a warning signal (2 < |z| < 3): amber
+PNG_DPI = 150
 SERIES = ("#1f77b4", "#ff7f0e", "#2ca02c", "#9467bd", "#8c564b", "#17becf")
 RC: dict[RcKeyType, Any] = {
     "svg.hashsalt": "pt-charts",
@@ -62,10 +64,7 @@ def _figure(width: float, height: float) -> Figure:
 
 
 def _svg(fig: Figure, label: str | None = None) -> str:
-    buffer = io.StringIO()
-    with matplotlib.rc_context(RC):
-        fig.savefig(buffer, format="svg", metadata={"Date": None, "Creator": None})
-    svg = buffer.getvalue()
+    svg = svg_file(fig)
     # Inline SVG in an HTML page: drop the XML prologue and the DOCTYPE, keep <svg ...>,
     # and let the viewBox scale it to its container (no fixed width in points).
     svg = svg[svg.index("<svg") :]
@@ -91,8 +90,42 @@ def _with_rc(func: Callable[_P, _R]) -> Callable[_P, _R]:
     return wrapper
 
 
+def png(fig: Figure, dpi: int = PNG_DPI) -> bytes:
+    """The figure as PNG (the Agg canvas), for a download beside the page's SVG."""
+    buffer = io.BytesIO()
+    with matplotlib.rc_context(RC):
+        fig.savefig(buffer, format="png", dpi=dpi, metadata={"Software": None})
+    return buffer.getvalue()
+
+
+def svg_file(fig: Figure) -> str:
+    """The figure as a standalone SVG document (XML prologue, its size in points): a file."""
+    buffer = io.StringIO()
+    with matplotlib.rc_context(RC):
+        fig.savefig(buffer, format="svg", metadata={"Date": None, "Creator": None})
+    return buffer.getvalue()
+
+
+def render(fig: Figure, fmt: str) -> str | bytes:
+    """One figure as ``inline`` SVG (a page), an ``svg`` file or ``png`` bytes (downloads)."""
+    if fmt == "png":
+        return png(fig)
+    return svg_file(fig) if fmt == "svg" else _svg(fig)
+
+
+def svg_of(builder: Callable[_P, Figure]) -> Callable[_P, str]:
+    """The chart function of a figure builder: the same arguments, the SVG text out."""
+
+    def chart(*args: _P.args, **kwargs: _P.kwargs) -> str:
+        return _svg(builder(*args, **kwargs))
+
+    chart.__doc__ = f"{builder.__name__} as inline SVG: {builder.__doc__}"
+    chart.__name__ = builder.__name__.replace("_figure", "_chart")
+    return chart
+
+
 @_with_rc
-def point_chart(
+def point_figure(
     labels: Sequence[str],
     values: Sequence[float],
     expanded_uncertainties: Sequence[float],
@@ -102,7 +135,7 @@ def point_chart(
     title: str,
     unit: str,
     highlight: str | None = None,
-) -> str:
+) -> Figure:
     """The labs' results with error bars (U) against x_pt and its ±U band, one point."""
     fig = _figure(5.6, 3.4)
     ax = fig.add_subplot()
@@ -125,7 +158,10 @@ def point_chart(
     ax.set_ylabel(f"Sensitivity ({_unit(unit)})")
     ax.set_title(title)
     fig.legend(loc="outside lower center", ncols=2, frameon=False)
-    return _svg(fig)
+    return fig
+
+
+point_chart = svg_of(point_figure)
 
 
 def _mark_own_tick(ax: Axes, labels: Sequence[str], highlight: str | None) -> None:
@@ -151,15 +187,16 @@ def _lab_ticks(ax: Axes, x: np.ndarray, labels: Sequence[str], highlight: str | 
 
 
 @_with_rc
-def en_chart(
+def en_figure(
     labels: Sequence[str],
     en: Sequence[float],
     *,
     title: str,
     limit: float = 1.0,
     highlight: str | None = None,
-) -> str:
-    """Signed En per lab as bars, with the ±limit lines (|En| > limit: red)."""
+) -> Figure:
+    """Signed En per lab as bars in the labs' order, with the ±limit lines (|En| > limit:
+    red); ``analysis.standard_charts.en_bar_chart`` is the same sorted."""
     fig = _figure(5.6, 3.0)
     ax = fig.add_subplot()
     x = np.arange(len(labels))
@@ -184,7 +221,10 @@ def en_chart(
     _lab_ticks(ax, x, labels, highlight)
     ax.set_ylabel("En")
     ax.set_title(title)
-    return _svg(fig)
+    return fig
+
+
+en_chart = svg_of(en_figure)
 
 
 @_with_rc

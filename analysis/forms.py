@@ -120,3 +120,25 @@ class CompatibilityForm(ScoreFilterForm):
             return {}
         # as text, the frequency in full (repr): lab_matrices reads them as GET filters
         return {k: str(v) for k, v in zip(POINT_FIELDS, p.key.measurand, strict=True)}
+
+
+class PairForm(BootstrapMixin, forms.Form):
+    """The Youden plot's pair of points (``"<pk>-<pk>"``, from ``graph_data.point_pairs``)."""
+
+    pair = forms.ChoiceField(required=False, label="Pair of points (Youden plot)")
+
+    def __init__(self, data: Any, *, pairs: list[tuple[str, str]]) -> None:
+        super().__init__(data)
+        cast(forms.ChoiceField, self.fields["pair"]).choices = pairs
+        self.pairs = dict(pairs)
+
+    def chosen(self, point: int | None = None) -> tuple[int, int] | None:
+        """The chosen pair's two point ids, else the first pair of ``point`` (the chosen
+        point), else the first pair (None: no pair)."""
+        key = self.cleaned_data.get("pair") if self.is_valid() else None
+        mine = (k for k in self.pairs if point is not None and str(point) in k.split("-"))
+        key = key or next(mine, None) or next(iter(self.pairs), None)
+        if key is None:
+            return None
+        a, b = key.split("-")
+        return int(a), int(b)

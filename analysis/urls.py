@@ -4,7 +4,7 @@ participants (``lab_*`` names under ``/results/``)."""
 
 from django.urls import path
 
-from analysis import archive_views, consistency_views, history_views, views
+from analysis import archive_views, chart_views, consistency_views, history_views, views
 
 C = "coordinator/<slug:code>/"
 P = "results/<slug:code>/"
@@ -42,7 +42,9 @@ for prefix, base, audience in (("", C, COORD), ("lab_", P, LAB)):
         path(base + "scores/", views.scores, audience, name=prefix + "scores"),
         path(base + "scores.<str:fmt>", views.scores_download, audience,
              name=prefix + "scores_download"),
-        path(base + "charts/", views.charts_page, audience, name=prefix + "charts"),
+        path(base + "charts/", chart_views.charts_page, audience, name=prefix + "charts"),
+        path(base + "charts/<slug:chart>.<str:ext>", chart_views.chart_download, audience,
+             name=prefix + "chart_download"),
         path(base + "compatibility/", views.compatibility, audience,
              name=prefix + "compatibility"),
         path(base + "consistency/", consistency_views.consistency, audience,

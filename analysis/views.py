@@ -27,10 +27,10 @@ from django.shortcuts import get_object_or_404, redirect, render
 from django.urls import reverse
 from django.views.decorators.http import require_GET, require_POST
 
-from analysis import charts
+from analysis import chart_specs, charts
 from analysis.archive import archive_shown
 from analysis.chart_cache import cached_chart
-from analysis.forms import CompatibilityForm, PointForm, ScoreFilterForm, point_choice_label
+from analysis.forms import CompatibilityForm, ScoreFilterForm
 from analysis.history import lab_history
 from analysis.history_views import trend_chart
 from analysis.models import AnalysisRun, AssignedValue, Publication, RoundArchive, Score
@@ -294,6 +294,8 @@ def results(request: AuthenticatedHttpRequest, code: str, audience: str) -> Http
         "summary": lab_performance(viewer.run, viewer.own_code) if viewer.own_code else None,
         "scores_url": viewer.url("scores"),
         **archive_context(viewer, archive_shown(viewer.run, viewer.own_code)),
+        "charts_url": viewer.url("charts"),
+        "overview": _overview(viewer, viewer.own_code) if viewer.own_code else None,
     }  # fmt: skip
     return _render(request, viewer, "results", context)
 
@@ -341,9 +343,15 @@ def participant_performance(
     history = lab_history(found.laboratory, within=coordinated_comparisons(request.user))
     context = {"lab": lab, "summary": lab_performance(viewer.run, lab),
                "scores_url": viewer.url("scores"), "history": history,
-               "chart": trend_chart(history),
-               "within_note": "that you coordinate"}  # fmt: skip
+               "chart": trend_chart(history), "within_note": "that you coordinate",
+               "charts_url": viewer.url("charts"), "overview": _overview(viewer, lab)}  # fmt: skip
     return _render(request, viewer, "participant_performance", context)
+
+
+def _overview(viewer: Viewer, lab: str) -> dict[str, Any]:
+    """One participant's En and z over all its points (its results page, the coordinator's
+    page of it), drawn once per run and participant."""
+    return chart_specs.figure(viewer, chart_specs.overview_spec(viewer, lab))
 
 
 def _lab_codes(viewer: Viewer) -> list[str]:
@@ -388,77 +396,6 @@ def scores_download(
 
 def _run_points(run: AnalysisRun) -> list[MeasurementPoint]:
     return [a.measurement_point for a in _assigned(run)]
-
-
-def _point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str]:
-    assert viewer.run is not None
-    parts = (point.pk, viewer.own_code, viewer.comparison.en_limit)
-    return cached_chart(viewer.run, "point", parts, lambda: _draw_point_charts(viewer, point))
-
-
-def _draw_point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str]:
-    assert viewer.run is not None
-    av = viewer.run.assigned_values.get(measurement_point=point)
-    found = list(run_scores(viewer.run, {}).filter(result__measurement_point=point))
-    labels = [s.result.submission.participant.code for s in found]
-    title = point_choice_label(point)
-    return {
-        "point": charts.point_chart(
-            labels, [s.result.value for s in found],
-            [s.result.expanded_uncertainty for s in found], assigned_value=av.value,
-            assigned_expanded_uncertainty=av.expanded_uncertainty, title=title,
-            unit=point.device.unit, highlight=viewer.own_code,
-        ),
-        "en": charts.en_chart(labels, [s.en for s in found], title=f"En · {title}",
-                              limit=viewer.comparison.en_limit, highlight=viewer.own_code),
-    }  # fmt: skip
-
-
-def _frequency_charts(viewer: Viewer) -> list[str]:
-    """Per device, sensitivity vs frequency per axis: the run's frequency matrices (§3 means)."""
-    assert viewer.run is not None
-    devices = tuple(viewer.comparison.devices.order_by("pk").values_list(
-        "name", "unit", "nominal_sensitivity", "tolerance", "tolerance_relative"))  # fmt: skip
-    return cached_chart(viewer.run, "frequency", devices, lambda: _draw_frequency_charts(viewer))
-
-
-def _draw_frequency_charts(viewer: Viewer) -> list[str]:
-    assert viewer.run is not None
-    by_device: dict[str, list[charts.Series]] = {}
-    for m in run_matrices(viewer.run, "frequency", {}):
-        series = charts.Series(str(m.group.get("axis", "")), [float(f) for f in m.levels],
-                               m.values, m.expanded_uncertainties)  # fmt: skip
-        by_device.setdefault(str(m.group.get("device", "")), []).append(series)
-    devices = {d.name: d for d in viewer.comparison.devices.all()}
-    out = []
-    for name, curves in sorted(by_device.items()):
-        d = devices.get(name)
-        nominal = d.nominal_sensitivity if d else None
-        half = None
-        if d and nominal and d.tolerance:
-            half = nominal * d.tolerance / 100 if d.tolerance_relative else d.tolerance
-        out.append(charts.frequency_chart(
-            curves, title=f"{name}: mean of all labs per frequency", unit=d.unit if d else "",
-            nominal=nominal, nominal_half_width=half,
-        ))  # fmt: skip
-    return out
-
-
-@login_required
-@require_GET
-def charts_page(request: AuthenticatedHttpRequest, code: str, audience: str) -> HttpResponse:
-    viewer = _viewer(request, code, audience)
-    if viewer.run is None:
-        return _render(request, viewer, "charts", {})
-    form = PointForm(request.GET, points=_run_points(viewer.run))
-    point = form.chosen()
-    context = {
-        "form": form,
-        "point": point,
-        "point_charts": _point_charts(viewer, point) if point else {},
-        "frequency_charts": _frequency_charts(viewer),
-    }
-    return _render(request, viewer, "charts", context)
 
 
 def _digest(en: Any) -> str:

@@ -51,6 +51,9 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("a_staff", f"/results/{C1}/", 23, "published"),
     ("a_staff", f"/results/{C1}/scores/", 20, "published"),
     ("a_staff", f"/results/{C1}/archive/status/", 8, "published"),
+    # every chart drawn (the cache is cleared): the point's and Mandel's (measured 2026-12-03)
+    ("a_staff", f"/results/{C1}/charts/", 22, "published"),
+    ("a_staff", f"/results/{C1}/charts/z.png", 9, "published"),
     # laboratory API (API key)
     ("key_a", "/api/v1/comparisons/", 5, ""),
     ("key_a", f"/api/v1/comparisons/{C1}/measurands/", 6, ""),
@@ -70,6 +73,9 @@ ROUTES: list[tuple[str, str, int, str]] = [
     ("coord1", f"/coordinator/{C1}/performance/", 19, ""),
     # + the participant's laboratory's history over the coordinator's published rounds
     ("coord1", f"/coordinator/{C1}/performance/{LAB_A_CODE}/", 20, "published"),
+    ("coord1", f"/coordinator/{C1}/charts/", 21, ""),
+    ("coord1", f"/coordinator/{C1}/charts/mandel-h.svg", 8, ""),
+    ("coord1", f"/coordinator/{C1}/charts/overview.svg?lab={LAB_A_CODE}", 8, ""),
     ("coord1", f"/coordinator/{C1}/raw-data/", 10, ""),
     ("coord1", f"/coordinator/{C1}/kits/", 10, ""),
     ("coord1", f"/reports/{C1}/", 11, ""),

@@ -107,7 +107,8 @@ def test_downloads_parse_back(client, run):
 def test_charts_and_heat_maps_are_inline_svg(client, run):
     login(client, "coordinator")
     page = client.get(C + "charts/").content.decode()
-    assert page.count("<svg") == 5  # point, En, 3 devices
+    # point, En, z, sorted En, density, DoE, Youden, Mandel h and k, 3 devices
+    assert page.count("<svg") == 12
     assert "Sensitivity (D/(m/s²))" in page and "Frequency (Hz)" in page
     heat = client.get(C + "compatibility/", {"factor": "frequency", "device": "MEMS 1"}).content
     assert heat.count(b"<svg") == 3  # MEMS 1 x 3 axes

@@ -321,6 +321,10 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    "coordinator/<slug:code>/charts/<slug:chart>.<str:ext>": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
     "coordinator/<slug:code>/compatibility/": Row(
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
@@ -362,6 +366,10 @@ TABLE: dict[str, Row] = {
         post="302 405 405 405 405 405 302 302 405",
     ),
     "results/<slug:code>/charts/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
+    "results/<slug:code>/charts/<slug:chart>.<str:ext>": Row(
         get="302 404 404 404 404 404 302 302 404",
         post="302 405 405 405 405 405 302 302 405",
     ),
@@ -643,6 +651,9 @@ PUBLISHED: dict[str, Row] = {
     "results/<slug:code>/scores/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/scores.<str:fmt>": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/charts/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "results/<slug:code>/charts/<slug:chart>.<str:ext>": Row(
+        get="302 200 200 200 404 404 302 302 404", post=""
+    ),
     "results/<slug:code>/compatibility/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/consistency/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/consistency.csv": Row(get="302 200 200 200 404 404 302 302 404", post=""),

@@ -92,6 +92,8 @@ class World:
             "reset_token": "set-password",
             "action": "publish",
             "which": "summary",
+            "chart": "z",
+            "ext": "png",
         }
 
     def client(self, persona: str) -> Client:
