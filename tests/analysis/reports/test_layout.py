@@ -50,3 +50,48 @@ def test_a_value_follows_its_uncertainty_with_its_trailing_zeros(tmp_path):
     # a matrix level's value to its U
     assert "a 418.000 0.011" in text and "b 419.5 1.0" in text
     assert not re.search(r"\b422 ", text) and "+4 " not in text
+
+
+HEADINGS = {
+    "1 Confidentiality", "2 Scheme design and protocol", "3 Artefacts", "4 Participants",
+    "5 Assigned values", "6 Results and scores", "7 Compatibility matrices",
+    "8 Consistency of the results (ISO 5725-2)", "9 Graphs", "10 Comments and conclusions",
+    "MEMS 1", "Comments on performance", "Conclusions", "Performance summary of participant L22",
+}  # fmt: skip
+
+
+def page_ends(pdf: bytes, tmp_path) -> list[str]:
+    """The last line of each page's body (the header above it and the footer below it
+    left out)."""
+    pages = pdftotext(pdf, tmp_path).split("\f")
+    ends = []
+    for page in pages:
+        lines = [line.strip() for line in page.splitlines() if line.strip()]
+        if len(lines) > 2:
+            assert lines[-1].endswith(f"of {len(pages) - 1}") or lines[-1].endswith(
+                f"of {len(pages)}"
+            ), lines[-1]
+            ends.append(lines[-2])
+    return ends
+
+
+def padded(words_: int) -> bytes:
+    text = " ".join(["padding"] * words_)
+    return render_report(dataclasses.replace(small_report(), protocol_description=text))
+
+
+def orphans(tmp_path, pads: range) -> list[tuple[int, str]]:
+    return [(pad, end) for pad in pads for end in page_ends(padded(pad), tmp_path)
+            if end in HEADINGS]  # fmt: skip
+
+
+def test_no_page_ends_with_a_heading(tmp_path, monkeypatch):
+    """The padding moves every heading after section 2 down the page, a line at a time,
+    so each of them falls at the foot of some page for some padding; none stays there.
+    Without keeping headings with what follows, some do (the check can fail)."""
+    from analysis.reports import render
+
+    pads = range(0, 1300, 20)  # about a line a step, ~60 lines (a page) in all
+    assert orphans(tmp_path, pads) == []
+    monkeypatch.setattr(render, "keep_headings", lambda flow: flow)
+    assert orphans(tmp_path, pads)
