@@ -162,7 +162,7 @@ def _build_context(run: AnalysisRun, key: tuple[object, ...]) -> RunContext:
         rows = _results_and_scores(run, index, use_z)
         stats = stats_of_rows(points, rows[0], rows[1], comparison.en_limit)
     else:
-        stats = _stream_stats(run, points, index, parts, n_scores, comparison.en_limit)
+        stats = _stream_stats(run, points, index, parts, n_scores, comparison.en_limit, use_z)
     return RunContext(
         key=key,
         points=tuple(points),
@@ -186,10 +186,11 @@ def _stream_stats(
     parts: list[tuple[int, str, bool]],
     n_scores: int,
     en_limit: float,
+    use_z: dict[int, bool],
 ) -> RoundStats:
     """The round's figures from every score of the run, read in chunks into numpy columns
     (memory: a few arrays of ``n_scores`` numbers, no row objects)."""
-    cols = np.empty((5, n_scores))
+    cols = np.empty((6, n_scores))
     rows = (
         Score.objects.filter(run=run)
         .order_by()
@@ -199,12 +200,16 @@ def _stream_stats(
             "result__value",
             "result__expanded_uncertainty",
             "en",
+            "z",
+            "z_prime",
         )
     )
     filled = 0
-    chunk: list[tuple[int, int, float, float, float]] = []
-    for row in rows.iterator(chunk_size=_STREAM_ROWS):
-        chunk.append(row)
+    chunk: list[tuple[int, int, float, float, float, float]] = []
+    nan = float("nan")
+    for pid, part, x, big_u, en, z, z_prime in rows.iterator(chunk_size=_STREAM_ROWS):
+        used = z if use_z.get(pid, False) else z_prime
+        chunk.append((pid, part, x, big_u, en, nan if used is None else used))
         if len(chunk) == _STREAM_ROWS:
             filled = _fill(cols, filled, chunk)
     filled = _fill(cols, filled, chunk)
@@ -218,11 +223,13 @@ def _stream_stats(
     lab = order[np.searchsorted(part_ids[order], cols[1].astype(np.int64))]
     codes = [code for _, code, _ in parts]
     return round_stats(
-        points, codes, (point, lab, cols[2], cols[3]), (point, lab, cols[4]), en_limit
+        points, codes, (point, lab, cols[2], cols[3]), (point, lab, cols[4], cols[5]), en_limit
     )
 
 
-def _fill(cols: np.ndarray, filled: int, chunk: list[tuple[int, int, float, float, float]]) -> int:
+def _fill(
+    cols: np.ndarray, filled: int, chunk: list[tuple[int, int, float, float, float, float]]
+) -> int:
     if chunk:
         end = min(filled + len(chunk), cols.shape[1])
         cols[:, filled:end] = np.array(chunk[: end - filled], dtype=float).T

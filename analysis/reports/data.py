@@ -228,6 +228,16 @@ class PointValues:
 
 
 @dataclass(frozen=True, eq=False)
+class PointScores:
+    """Every lab's En and z (or z′, the one that counts; NaN where the point has none) at
+    one point, labs in code order (the sorted score charts' data)."""
+
+    labs: tuple[str, ...]
+    en: np.ndarray
+    z: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class ResultListing:
     """Every scored result of a large round as columns, for the summary's results table
     (about 60 bytes a row instead of two row objects and a dict entry: about 1 kB).
@@ -271,6 +281,7 @@ class RoundStats:
     point_values: Mapping[int, PointValues]
     largest_en: tuple[tuple[str, float], ...]
     frequency: tuple[tuple[str, tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...]], ...]
+    point_scores: Mapping[int, PointScores] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,7 @@ page).  Read back with poppler (pdftotext -layout, pdfinfo, pdfimages)."""
 
 import subprocess
 
+import numpy as np
 import pytest
 from django.contrib.auth import get_user_model
 from PIL import Image
@@ -27,10 +28,12 @@ def squ(t) -> str:
     return f"{t.satisfactory} {t.warning} {t.action}"
 
 
-def images_on(pdf: bytes, tmp_path, page: int) -> int:
+def images_on(pdf: bytes, tmp_path, page: int | None = None) -> int:
+    """Images drawn on ``page`` (every page: None), from poppler's pdfimages."""
     path = tmp_path / "report-for-images.pdf"
     path.write_bytes(pdf)
-    listed = subprocess.run(["pdfimages", "-list", "-f", str(page), "-l", str(page), str(path)],
+    pages = ["-f", str(page), "-l", str(page)] if page else []
+    listed = subprocess.run(["pdfimages", "-list", *pages, str(path)],
                             check=True, capture_output=True).stdout.decode()  # fmt: skip
     return len(listed.splitlines()) - 2  # two header lines
 
@@ -69,6 +72,14 @@ def test_participant_report_opens_with_its_performance_summary(varied, tmp_path)
         assert f"{p.bench} {p.direction} {kind} {s.z_used:.2f} {s.z_flag}" in listed  # type: ignore[attr-defined]
     # the 81 bullets of the old page are gone
     assert "Your result for" not in words(pdftotext(pdf, tmp_path))
+    # the graphs: its En and z over its points, per chart point the results and the sorted
+    # En and z (z at points with a σ_pt), the largest |En| per lab, a frequency chart per device
+    data = report_data(run=run, participant=participant)
+    with_z = [p for p in data.chart_points
+              if not np.isnan(data.round.point_scores[p].z).all()]  # fmt: skip
+    devices = {p.device for p in data.points}
+    expected = 2 + 2 * len(data.chart_points) + len(with_z) + 1 + len(devices)
+    assert len(data.chart_points) == 4 and images_on(pdf, tmp_path) == expected
 
 
 def test_summary_report_has_every_participants_counts(varied, tmp_path):  # noqa: F811

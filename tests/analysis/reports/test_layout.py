@@ -4,6 +4,8 @@ database: a hand-made report, read back with poppler (pdftotext, pdfinfo, pdfima
 
 import dataclasses
 import re
+import subprocess
+from collections import Counter
 
 from analysis.reports.data import AssignedRow, MatrixData, ResultRow, ScoreRow
 from analysis.reports.render import render_report
@@ -60,18 +62,27 @@ HEADINGS = {
 }  # fmt: skip
 
 
+def images_per_page(pdf: bytes, tmp_path) -> Counter[int]:
+    """How many images poppler's pdfimages finds drawn on each page."""
+    path = tmp_path / "report-for-images.pdf"
+    path.write_bytes(pdf)
+    listed = subprocess.run(["pdfimages", "-list", str(path)], check=True, capture_output=True)
+    return Counter(int(line.split()[0]) for line in listed.stdout.decode().splitlines()[2:])
+
+
 def page_ends(pdf: bytes, tmp_path) -> list[str]:
-    """The last line of each page's body (the header above it and the footer below it
-    left out)."""
+    """The last line of text of each page's body (the header above it and the footer below
+    it left out).  A chart has no text: a page ending in "9 Graphs" with a chart drawn on
+    it ends with the chart (only that section has images, all below its heading)."""
     pages = pdftotext(pdf, tmp_path).split("\f")
+    images = images_per_page(pdf, tmp_path)
     ends = []
-    for page in pages:
+    for number, page in enumerate(pages, start=1):
         lines = [line.strip() for line in page.splitlines() if line.strip()]
         if len(lines) > 2:
-            assert lines[-1].endswith(f"of {len(pages) - 1}") or lines[-1].endswith(
-                f"of {len(pages)}"
-            ), lines[-1]
-            ends.append(lines[-2])
+            assert re.fullmatch(r".*Page \d+ of \d+", lines[-1]), lines[-1]
+            if not (lines[-2] == "9 Graphs" and images[number]):
+                ends.append(lines[-2])
     return ends
 
 
