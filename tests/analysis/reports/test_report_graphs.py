@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 
 from analysis.reports import charts, figures
-from analysis.reports.data import ScoreRow
+from analysis.reports.data import ReportData, ScoreRow
 from analysis.reports.render import register_fonts, render_report
 from tests.analysis.reports.conftest import pdftotext
 from tests.analysis.reports.test_visual import small_report
@@ -18,7 +18,7 @@ EN = (0.4, -1.7, 2.6, -0.1, 0.9)
 Z = (2.5, -3.4, 0.2, None, -1.1)  # L44 has no z at this point (not scored)
 
 
-def scored() -> object:
+def scored() -> ReportData:
     """Five labs at point 0 with known En and z; L22 (the reader) also at point 1."""
     base = small_report()
     scores = (
