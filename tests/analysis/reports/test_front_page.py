@@ -131,6 +131,7 @@ def test_provider_furniture_on_every_page(analysed, settings, tmp_path):
     assert "Address 12 Quay Road, 4000 Porto" in first
     assert "Accreditation accredited to ISO/IEC 17043 by IPAC, No. P-0042" in first
     assert images_on(pdf, tmp_path, 1) == 1
+    assert render_report(report_data(run=analysed, participant=participant)) == pdf  # stable
     # a logo that is not there: the same report without it, no error
     settings.PT_PROVIDER_LOGO = str(tmp_path / "gone.png")
     without = render_report(report_data(run=analysed, participant=participant))

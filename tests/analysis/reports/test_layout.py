@@ -106,3 +106,28 @@ def test_no_page_ends_with_a_heading(tmp_path, monkeypatch):
     assert orphans(tmp_path, pads) == []
     monkeypatch.setattr(render, "keep_headings", lambda flow: flow)
     assert orphans(tmp_path, pads)
+
+
+def test_the_participants_table_repeats_its_header_on_every_page(tmp_path):
+    """A summary's table of 150 participants runs over pages, each starting with the
+    header; every participant's row is printed once, in code order."""
+    from analysis.reports.data import Counts, LabSummary, PerformanceLine
+
+    labs = tuple(
+        LabSummary(f"L{i:03d}", PerformanceLine("all", Counts(70 + i % 5, 0, 11 - i % 5),
+                                                Counts(60, i % 7, 2)), max_en=1.5, max_z=3.25)
+        for i in range(150)
+    )  # fmt: skip
+    data = dataclasses.replace(small_report(), kind="summary", own_code=None, performances=labs)
+    pages = pdftotext(render_report(data), tmp_path).split("\f")
+    head = "Code n En S En Q En U z S z Q z U max |En| max |z|"
+    with_rows = [words(p) for p in pages if re.search(r"\bL\d{3} 81 ", words(p))]
+    assert len(with_rows) >= 3
+    for page in with_rows:
+        first = re.search(r"\bL\d{3} 81 ", page)
+        above = page[: first.start()].replace(" ", "") if first else ""
+        assert head.replace(" ", "") in above, page[:300]  # pdftotext may join "z S"
+    text = " ".join(with_rows)
+    printed = re.findall(r"\b(L\d{3}) 81 (\d+) 0 (\d+) 60 (\d) 2 1.50 3.25\b", text)
+    assert printed == [(f"L{i:03d}", str(70 + i % 5), str(11 - i % 5), str(i % 7))
+                       for i in range(150)]  # fmt: skip
