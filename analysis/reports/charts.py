@@ -363,6 +363,7 @@ def frequency_chart(
 
 
 WARN = "#fd7e14"
+SORTED_CAP = 1000.0  # a sorted chart's bars end at ±1000 limits (its frame's edge)
 Z_LIMITS = (2.0, 3.0)  # |z| above the first is questionable, at or above the second not
 
 
@@ -393,12 +394,14 @@ class SortedChart(Shared):
         title: str, ylabel: str,
     ) -> None:  # fmt: skip
         self.index = {label: i for i, label in enumerate(labels)}
-        self.values = values
         y = np.asarray(values, dtype=float)
+        colours = verdict_colours(y, limits)
+        cap = SORTED_CAP * limits[-1]  # extreme scores (1e300) drawn to the frame's edge
+        y = np.clip(y, -cap, cap)
+        self.values = tuple(y.tolist())
         with matplotlib.rc_context(RC):
             self.fig, self.ax = _figure(6.4, 2.2)
             ax = self.ax
-            colours = verdict_colours(y, limits)
             if len(labels) > COLLECTED:
                 _bars(ax, y, colours, self.WIDTH)
             else:

@@ -86,3 +86,13 @@ def test_captions_say_how_to_read_each_graph(tmp_path):
     summary = dataclasses.replace(scored(), kind="summary", own_code=None)
     text = " ".join(pdftotext(render_report(summary), tmp_path).split())
     assert "The same points' scores sorted" in text and "at each of your points" not in text
+
+
+def test_an_extreme_score_ends_at_the_frame_instead_of_failing_the_chart():
+    """A score of 1e300 (a result with a tiny U far from x_pt is valid) would make the axis
+    infinite: its bar stops at 1000 limits, the others are drawn as they are."""
+    chart = charts.sorted_chart(("L1", "L2"), (0.5, 1e300), limits=(1.0,), title="t", ylabel="En")
+    assert chart.values == (0.5, 1000.0)
+    mark = chart.overlay("L2")
+    assert mark is not None and all(np.isfinite(mark.rects[0]))
+    assert chart.raster.width > 0
