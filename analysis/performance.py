@@ -102,15 +102,26 @@ def _grouped(run: AnalysisRun, codes: Iterable[str] | None) -> QuerySet[Score, d
     )
 
 
-def _summaries(run: AnalysisRun, codes: Iterable[str] | None) -> dict[str, LabPerformance]:
-    by_lab: dict[str, tuple[Row, list[dict[str, Row]]]] = {}
+#: one group of a run's scores: (lab code, device, bench, axis, En flag, z flag, count)
+Group = tuple[str, str, str, str, str, str, int]
+
+
+def _grouped_rows(run: AnalysisRun, codes: Iterable[str] | None) -> Iterable[Group]:
+    keys = ["result__submission__participant__code", *(path for _, _, path in BREAKDOWNS)]
     for g in _grouped(run, codes):
-        code = g["result__submission__participant__code"]
+        yield (*(str(g[k]) for k in keys), g["flag"], g["z_flag"], g["n"])
+
+
+def summaries_of(groups: Iterable[Group]) -> dict[str, LabPerformance]:
+    """The laboratories' summaries (by code, in code order; no maxima, no worst lists) of
+    grouped flag counts: what :func:`performance` reads, or a report's own score rows
+    (``analysis.reports.assemble``), so both count by one rule."""
+    by_lab: dict[str, tuple[Row, list[dict[str, Row]]]] = {}
+    for code, *levels_of, en_flag, z_flag, n in groups:
         total, levels = by_lab.setdefault(code, (Row("all"), [{} for _ in BREAKDOWNS]))
-        total.add(g["flag"], g["z_flag"], g["n"])
-        for (_, _, path), rows in zip(BREAKDOWNS, levels, strict=True):
-            level = str(g[path])
-            rows.setdefault(level, Row(level)).add(g["flag"], g["z_flag"], g["n"])
+        total.add(en_flag, z_flag, n)
+        for level, rows in zip(levels_of, levels, strict=True):
+            rows.setdefault(level, Row(level)).add(en_flag, z_flag, n)
     out = {}
     for code in sorted(by_lab):
         total, levels = by_lab[code]
@@ -139,7 +150,7 @@ def performance(run: AnalysisRun, codes: Iterable[str] | None = None) -> list[La
     Two queries: the grouped flag counts and the largest |En| and |z| (z′ where it counts)
     per laboratory."""
     codes = list(codes) if codes is not None else None
-    summaries = _summaries(run, codes)
+    summaries = summaries_of(_grouped_rows(run, codes))
     for code, (en, z) in _maxima(run, codes).items():
         if code in summaries:
             summaries[code].max_abs_en, summaries[code].max_abs_z = en, z

@@ -289,8 +289,14 @@ FILE_UPLOAD_MAX_MEMORY_SIZE = 2 * 1024 * 1024
 IDEMPOTENCY_KEY_HOURS = env.int("IDEMPOTENCY_KEY_HOURS", default=24)
 SUBMISSION_DEDUP_SECONDS = env.int("SUBMISSION_DEDUP_SECONDS", default=600)
 
-# PT provider shown on reports and pages.
+# PT provider shown on reports and pages; the title page of a report adds its address, its
+# accreditation and its logo (a PNG or JPEG file; none, or a missing file: no logo).
 PT_PROVIDER_NAME = env.str("PT_PROVIDER_NAME", default="Demo PT Provider")
+PT_PROVIDER_ADDRESS = env.str("PT_PROVIDER_ADDRESS", default="1 Example Street, 12345 Example City")
+PT_PROVIDER_ACCREDITATION = env.str(
+    "PT_PROVIDER_ACCREDITATION", default="not accredited (a demonstration installation)"
+)
+PT_PROVIDER_LOGO = env.str("PT_PROVIDER_LOGO", default="")
 
 # Security: strict when DEBUG is off (production); each can be overridden from the environment.
 SECURE_PROXY_SSL_HEADER = ("HTTP_X_FORWARDED_PROTO", "https")

@@ -15,14 +15,18 @@ from django.conf import settings
 from django.contrib.auth.models import User
 
 import proficiency
+from analysis import performance
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score, method_label
 from analysis.reports.consistency import consistency_summary
 from analysis.reports.data import (
     PARTICIPANT,
     AssignedRow,
     ConsistencySummary,
+    Counts,
     DeviceInfo,
+    LabSummary,
     MatrixData,
+    PerformanceLine,
     PointInfo,
     ReportData,
     ResultListing,
@@ -65,8 +69,17 @@ _SCORE_FIELDS = (
 )
 
 
+COORDINATOR_ROLE = "coordinator"  # the role of every member of ``Comparison.coordinators``
+
+
 def person(user: User) -> str:
     return user.get_full_name() or user.get_username()
+
+
+def coordinator(user: User) -> str:
+    """ "Full name, role" of one of the comparison's coordinators (the username only when
+    the account has no name)."""
+    return f"{person(user)}, {COORDINATOR_ROLE}"
 
 
 def authoriser(comparison: Comparison) -> str:
@@ -149,7 +162,7 @@ def _build_context(run: AnalysisRun, key: tuple[object, ...]) -> RunContext:
         rows = _results_and_scores(run, index, use_z)
         stats = stats_of_rows(points, rows[0], rows[1], comparison.en_limit)
     else:
-        stats = _stream_stats(run, points, index, parts, n_scores, comparison.en_limit)
+        stats = _stream_stats(run, points, index, parts, n_scores, comparison.en_limit, use_z)
     return RunContext(
         key=key,
         points=tuple(points),
@@ -173,10 +186,11 @@ def _stream_stats(
     parts: list[tuple[int, str, bool]],
     n_scores: int,
     en_limit: float,
+    use_z: dict[int, bool],
 ) -> RoundStats:
     """The round's figures from every score of the run, read in chunks into numpy columns
     (memory: a few arrays of ``n_scores`` numbers, no row objects)."""
-    cols = np.empty((5, n_scores))
+    cols = np.empty((6, n_scores))
     rows = (
         Score.objects.filter(run=run)
         .order_by()
@@ -186,12 +200,16 @@ def _stream_stats(
             "result__value",
             "result__expanded_uncertainty",
             "en",
+            "z",
+            "z_prime",
         )
     )
     filled = 0
-    chunk: list[tuple[int, int, float, float, float]] = []
-    for row in rows.iterator(chunk_size=_STREAM_ROWS):
-        chunk.append(row)
+    chunk: list[tuple[int, int, float, float, float, float]] = []
+    nan = float("nan")
+    for pid, part, x, big_u, en, z, z_prime in rows.iterator(chunk_size=_STREAM_ROWS):
+        used = z if use_z.get(pid, False) else z_prime
+        chunk.append((pid, part, x, big_u, en, nan if used is None else used))
         if len(chunk) == _STREAM_ROWS:
             filled = _fill(cols, filled, chunk)
     filled = _fill(cols, filled, chunk)
@@ -205,11 +223,13 @@ def _stream_stats(
     lab = order[np.searchsorted(part_ids[order], cols[1].astype(np.int64))]
     codes = [code for _, code, _ in parts]
     return round_stats(
-        points, codes, (point, lab, cols[2], cols[3]), (point, lab, cols[4]), en_limit
+        points, codes, (point, lab, cols[2], cols[3]), (point, lab, cols[4], cols[5]), en_limit
     )
 
 
-def _fill(cols: np.ndarray, filled: int, chunk: list[tuple[int, int, float, float, float]]) -> int:
+def _fill(
+    cols: np.ndarray, filled: int, chunk: list[tuple[int, int, float, float, float, float]]
+) -> int:
     if chunk:
         end = min(filled + len(chunk), cols.shape[1])
         cols[:, filled:end] = np.array(chunk[: end - filled], dtype=float).T
@@ -372,6 +392,9 @@ def report_data(
     return ReportData(
         kind=PARTICIPANT if participant else "summary",
         provider=settings.PT_PROVIDER_NAME,
+        provider_address=settings.PT_PROVIDER_ADDRESS,
+        provider_accreditation=settings.PT_PROVIDER_ACCREDITATION,
+        provider_logo=settings.PT_PROVIDER_LOGO,
         comparison_code=comparison.code,
         comparison_title=comparison.title,
         report_number=report_number(comparison, participant, edition),
@@ -409,7 +432,54 @@ def report_data(
         stats=context.stats,
         listing=listing,
         consistency=context.consistency,
+        performance=_own_summary(participant.code, context.points, scores) if participant else None,
+        performances=() if participant else _summaries(run),
     )
+
+
+def _counts(t: performance.Tally) -> Counts:
+    return Counts(t.satisfactory, t.warning, t.action, t.not_scored)
+
+
+def _line(row: performance.Row) -> PerformanceLine:
+    return PerformanceLine(row.level, _counts(row.en), _counts(row.z))
+
+
+def _lab_summary(
+    found: performance.LabPerformance,
+    worst_en: tuple[ScoreRow, ...] = (),
+    worst_z: tuple[ScoreRow, ...] = (),
+) -> LabSummary:
+    breakdowns = tuple((heading, tuple(_line(r) for r in rows))
+                       for _, heading, rows in found.breakdowns)  # fmt: skip
+    return LabSummary(found.code, _line(found.total), breakdowns, found.max_abs_en,
+                      found.max_abs_z, worst_en, worst_z)  # fmt: skip
+
+
+def _summaries(run: AnalysisRun) -> tuple[LabSummary, ...]:
+    """Every participant's summary, as the coordinator's performance page shows it."""
+    return tuple(_lab_summary(found) for found in performance.performance(run))
+
+
+def _own_summary(
+    code: str, points: Sequence[PointInfo], scores: Sequence[ScoreRow]
+) -> LabSummary | None:
+    """The participant's summary from its own score rows (no query), counted by
+    ``analysis.performance``'s rule; its largest |En| and |z| first, as
+    ``analysis.performance.lab_performance`` lists them (None: it has no score)."""
+    own = [s for s in scores if s.lab == code]
+    if not own:
+        return None
+    groups = [(code, (p := points[s.point]).device, p.bench, p.axis, s.flag, s.z_flag, 1)
+              for s in own]  # fmt: skip
+    found = performance.summaries_of(groups)[code]
+    found.max_abs_en = max(abs(s.en) for s in own)
+    found.max_abs_z = max((abs(s.z) for s in own if s.z is not None), default=None)
+    by_en = sorted(own, key=lambda s: (-abs(s.en), s.point))
+    with_z = [s for s in own if s.z_flag and s.z is not None]
+    by_z = sorted(with_z, key=lambda s: (-abs(s.z or 0.0), s.point))
+    worst = performance.WORST
+    return _lab_summary(found, tuple(by_en[:worst]), tuple(by_z[:worst]))
 
 
 @dataclass(frozen=True)
@@ -421,7 +491,7 @@ class ComparisonCommon:
 
 
 def comparison_common(comparison: Comparison) -> ComparisonCommon:
-    coordinators = tuple(person(u) for u in comparison.coordinators.order_by("username"))
+    coordinators = tuple(coordinator(u) for u in comparison.coordinators.order_by("username"))
     return ComparisonCommon(coordinators, _devices(comparison))
 
 

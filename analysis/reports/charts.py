@@ -360,3 +360,128 @@ def frequency_chart(
         ax.set_title(title)
         ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=6, frameon=False)
     return _raster(fig)
+
+
+WARN = "#fd7e14"
+SORTED_CAP = 1000.0  # a sorted chart's bars end at ±1000 limits (its frame's edge)
+Z_LIMITS = (2.0, 3.0)  # |z| above the first is questionable, at or above the second not
+
+
+def verdict_colours(values: np.ndarray, limits: tuple[float, ...]) -> list[str]:
+    """Blue within the first limit, orange between the two (z), red beyond the last."""
+    a = np.abs(values)
+    if len(limits) == 1:
+        return [BAD if v > limits[0] else LAB for v in a.tolist()]
+    low, high = limits
+    return [BAD if v >= high else (WARN if v > low else LAB) for v in a.tolist()]
+
+
+def _limit_lines(ax: Any, limits: tuple[float, ...]) -> None:
+    for limit, colour in zip(limits, (WARN, BAD) if len(limits) == 2 else (BAD,), strict=True):
+        for sign in (-1, 1):
+            ax.axhline(sign * limit, color=colour, lw=0.8, ls="--")
+    ax.axhline(0.0, color="#6c757d", lw=0.6)
+
+
+class SortedChart(Shared):
+    """Every lab's score at one point in ascending order (ISO 13528:2022 10.3, sorted bar
+    chart), coloured by verdict, with the limits; the reader's own bar is an overlay."""
+
+    WIDTH = 0.7
+
+    def __init__(
+        self, labels: tuple[str, ...], values: tuple[float, ...], *, limits: tuple[float, ...],
+        title: str, ylabel: str,
+    ) -> None:  # fmt: skip
+        self.index = {label: i for i, label in enumerate(labels)}
+        y = np.asarray(values, dtype=float)
+        colours = verdict_colours(y, limits)
+        cap = SORTED_CAP * limits[-1]  # extreme scores (1e300) drawn to the frame's edge
+        y = np.clip(y, -cap, cap)
+        self.values = tuple(y.tolist())
+        with matplotlib.rc_context(RC):
+            self.fig, self.ax = _figure(6.4, 2.2)
+            ax = self.ax
+            if len(labels) > COLLECTED:
+                _bars(ax, y, colours, self.WIDTH)
+            else:
+                ax.bar(np.arange(len(labels)), y, color=colours, width=self.WIDTH)
+            _limit_lines(ax, limits)
+            top = max(float(np.max(np.abs(y))) if len(y) else 0.0, limits[-1]) * 1.1
+            ax.set_ylim(-top, top)
+            self.fig.subplots_adjust(**_x_axis(ax, labels))
+            ax.set_ylabel(ylabel)
+            ax.set_title(title)
+        self._freeze()
+
+    def overlay(self, highlight: str | None) -> Overlay | None:
+        i = self.index.get(highlight) if highlight else None
+        if i is None:
+            return None
+        half = self.WIDTH / 2
+        (x0, y0), (x1, y1) = self._px(i - half, 0.0), self._px(i + half, self.values[i])
+        return Overlay(rects=((x0, min(y0, y1), x1, max(y0, y1)),))
+
+
+@functools.lru_cache(maxsize=64)
+def sorted_chart(
+    labels: tuple[str, ...], values: tuple[float, ...], *, limits: tuple[float, ...],
+    title: str, ylabel: str,
+) -> SortedChart:  # fmt: skip
+    """The (cached) sorted bar chart of one point and score: every report of a run shares it."""
+    return SortedChart(labels, values, limits=limits, title=title, ylabel=ylabel)
+
+
+class OverviewFrame(Shared):
+    """The axes of one laboratory's scores over every point of a round (points in report
+    order, grouped by device), with the limits, clipped at ±``top``; the laboratory's own
+    bars are overlays (:meth:`bars`), so one raster serves every participant."""
+
+    WIDTH = 0.7
+
+    def __init__(
+        self, groups: tuple[tuple[str, int, int], ...], n: int, *, limits: tuple[float, ...],
+        top: float, title: str, ylabel: str,
+    ) -> None:  # fmt: skip
+        self.top = top
+        with matplotlib.rc_context(RC):
+            self.fig, self.ax = _figure(6.4, 1.9, bottom=0.2)
+            ax = self.ax
+            _limit_lines(ax, limits)
+            ax.set_xlim(-0.5, n - 0.5)
+            ax.set_ylim(-top, top)
+            for start in [start for _, start, _ in groups if start]:
+                ax.axvline(start - 0.5, color="#adb5bd", lw=0.6)
+            ax.set_xticks([(start + stop - 1) / 2 for _, start, stop in groups],
+                          [name for name, _, _ in groups])  # fmt: skip
+            ax.tick_params(axis="x", length=0)
+            ax.set_ylabel(ylabel)
+            ax.set_title(title)
+        self._freeze()
+
+    def bars(
+        self, at: Sequence[int], values: Sequence[float], colours: Sequence[str]
+    ) -> tuple[Overlay, ...]:
+        """The bars at point positions ``at``, one overlay per colour; a bar beyond the
+        frame ends at its edge with a dot."""
+        rects: dict[str, list[tuple[float, float, float, float]]] = {}
+        dots: dict[str, list[tuple[float, float]]] = {}
+        half = self.WIDTH / 2
+        for i, v, colour in zip(at, values, colours, strict=True):
+            y = min(max(v, -self.top), self.top)
+            (x0, y0), (x1, y1) = self._px(i - half, 0.0), self._px(i + half, y)
+            rects.setdefault(colour, []).append((x0, min(y0, y1), x1, max(y0, y1)))
+            if y != v:
+                dots.setdefault(colour, []).append(((x0 + x1) / 2, y1))
+        return tuple(
+            Overlay(rects=tuple(r), dots=tuple(dots.get(c, ())), dot_radius=2.5 * PX, colour=c)
+            for c, r in sorted(rects.items())
+        )
+
+
+@functools.lru_cache(maxsize=16)
+def overview_frame(
+    groups: tuple[tuple[str, int, int], ...], n: int, *, limits: tuple[float, ...], top: float,
+    title: str, ylabel: str,
+) -> OverviewFrame:  # fmt: skip
+    return OverviewFrame(groups, n, limits=limits, top=top, title=title, ylabel=ylabel)

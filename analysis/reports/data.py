@@ -107,6 +107,51 @@ class ScoreRow:
 
 
 @dataclass(frozen=True)
+class Counts:
+    """One score type's flags over some of a laboratory's results, as
+    ``analysis.performance.Tally`` counts them: satisfactory, questionable (a warning
+    signal), unsatisfactory (an action signal) and not scored."""
+
+    satisfactory: int
+    questionable: int
+    unsatisfactory: int
+    not_scored: int = 0
+
+    @property
+    def scored(self) -> int:
+        return self.satisfactory + self.questionable + self.unsatisfactory
+
+
+@dataclass(frozen=True)
+class PerformanceLine:
+    """The En and z counts of one level of a breakdown (a device, a bench, an axis) or of
+    all the laboratory's results (``level`` "all"); ``z`` counts only points with a σ_pt."""
+
+    level: str
+    en: Counts
+    z: Counts
+
+
+@dataclass(frozen=True)
+class LabSummary:
+    """A laboratory's performance summary (docs/domain.md §4, "Performance summary"):
+    its counts, by ``breakdowns`` (heading, lines), its largest |En| and |z| (z′ where it
+    counts) and, in its own report, its largest scores (``worst_en``, ``worst_z``)."""
+
+    code: str
+    total: PerformanceLine
+    breakdowns: tuple[tuple[str, tuple[PerformanceLine, ...]], ...] = ()
+    max_en: float | None = None
+    max_z: float | None = None
+    worst_en: tuple[ScoreRow, ...] = ()
+    worst_z: tuple[ScoreRow, ...] = ()
+
+    @property
+    def n_results(self) -> int:
+        return self.total.en.scored + self.total.en.not_scored
+
+
+@dataclass(frozen=True)
 class StabilityRow:
     """The pilot's mean before and after circulation at one point (docs/domain.md §7):
     Δ = after − before, En of the two, the 0.3·σ_pt limit (None without σ_pt), the verdict
@@ -183,6 +228,16 @@ class PointValues:
 
 
 @dataclass(frozen=True, eq=False)
+class PointScores:
+    """Every lab's En and z (or z′, the one that counts; NaN where the point has none) at
+    one point, labs in code order (the sorted score charts' data)."""
+
+    labs: tuple[str, ...]
+    en: np.ndarray
+    z: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class ResultListing:
     """Every scored result of a large round as columns, for the summary's results table
     (about 60 bytes a row instead of two row objects and a dict entry: about 1 kB).
@@ -226,6 +281,7 @@ class RoundStats:
     point_values: Mapping[int, PointValues]
     largest_en: tuple[tuple[str, float], ...]
     frequency: tuple[tuple[str, tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...]], ...]
+    point_scores: Mapping[int, PointScores] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -272,6 +328,15 @@ class ReportData:
     listing: ResultListing | None = None
     # The ISO 5725-2 tests; None: the run stored none (a run older than the tests).
     consistency: ConsistencySummary | None = None
+    # The participant's own performance summary (a participant report) and every
+    # participant's, without their largest scores (the summary report).
+    performance: LabSummary | None = None
+    performances: tuple[LabSummary, ...] = ()
+    # The provider's furniture (docs/domain.md §9, the PT_PROVIDER_* settings), printed on
+    # the title page; the logo is the path of a PNG or JPEG file ("" or missing: no logo).
+    provider_address: str = ""
+    provider_accreditation: str = ""
+    provider_logo: str = ""
 
     @property
     def is_participant(self) -> bool:

@@ -10,6 +10,7 @@ import copy
 import functools
 import weakref
 
+import numpy as np
 from reportlab import rl_config
 from reportlab.lib.colors import HexColor
 from reportlab.lib.rl_accel import asciiBase85Encode
@@ -17,9 +18,11 @@ from reportlab.lib.units import mm
 from reportlab.pdfbase.pdfdoc import PDFImageXObject
 from reportlab.platypus import Flowable, Paragraph
 
+from analysis.core.graphs import sorted_scores
+from analysis.core.scores import NEGLIGIBLE_FRACTION
 from analysis.reports import charts
 from analysis.reports.charts import Overlay, Raster
-from analysis.reports.data import AssignedRow, ReportData, RoundStats
+from analysis.reports.data import AssignedRow, ReportData, RoundStats, ScoreRow
 from analysis.reports.styles import STYLES
 
 WIDTH = 170 * mm
@@ -48,9 +51,12 @@ class RasterImage(Flowable):
     """A chart at full text width, with the reader's own result drawn over it as vector
     marks; the image is what ``Canvas.drawImage`` writes, minus re-encoding."""
 
-    def __init__(self, raster: Raster, overlay: Overlay | None = None) -> None:
+    def __init__(
+        self, raster: Raster, overlay: Overlay | tuple[Overlay, ...] | None = None
+    ) -> None:
         super().__init__()
-        self.raster, self.overlay = raster, overlay
+        self.raster = raster
+        self.overlays = (overlay,) if isinstance(overlay, Overlay) else (overlay or ())
         self.width, self.height = WIDTH, WIDTH * raster.height / raster.width
 
     def wrap(self, available_width: float, available_height: float) -> tuple[float, float]:
@@ -70,8 +76,8 @@ class RasterImage(Flowable):
         canvas._code.append(f"/{registered} Do")
         canvas.restoreState()
         canvas._formsinuse.append(name)
-        if self.overlay:
-            self._draw_overlay(self.overlay)
+        for mark in self.overlays:
+            self._draw_overlay(mark)
 
     def _draw_overlay(self, mark: Overlay) -> None:
         canvas = self.canv
@@ -90,13 +96,20 @@ class RasterImage(Flowable):
         canvas.restoreState()
 
 
+def caption(text: str) -> Paragraph:
+    return Paragraph(text, STYLES["caption"])
+
+
 def figures(data: ReportData) -> list[Flowable]:
-    """Values vs x_pt for the chosen points, largest |En| per lab, x_pt vs frequency."""
+    """The participant's scores over its points; values vs x_pt and the sorted En and z
+    of the chosen points; largest |En| per lab; x_pt vs frequency."""
     out: list[Flowable] = []
     if data.own_code:
+        out += _overview(data)
         note = f"Your result ({data.own_code}) is drawn in pink; the others in blue."
         out.append(Paragraph(note, STYLES["small"]))
     out += _point_charts(data)
+    out += _sorted_charts(data)
     out += _en_chart(data)
     out += _frequency_charts(data)
     if not out:
@@ -150,15 +163,137 @@ def _point_charts(data: ReportData) -> list[Flowable]:
         chart = _point_chart(data, index, assigned)
         if chart is not None:
             out.append(RasterImage(chart.raster, chart.overlay(data.own_code)))
+    if out:
+        out.append(caption(POINT_CAPTION))
     return out
 
 
+POINT_CAPTION = (
+    "Each participant's result with its expanded uncertainty U (bars) at the points with "
+    "the largest |En|, participants in code order; the dashed line is the assigned value "
+    "x_pt and the band x_pt ± U(x_pt). A bar that does not reach the band is a result "
+    "incompatible with x_pt."
+)
+SORTED_CAPTION = (
+    "The same points' scores sorted from lowest to highest (ISO 13528:2022 10.3), one bar "
+    "per participant{own}: En with its limits ±{limit:g} (red dashed lines), and {z} with "
+    "±2 (orange) and ±3 (red). A bar beyond the lines is questionable (orange) or "
+    "unsatisfactory (red); the sorted bars show whether a result is one of a few outlying "
+    "ones or part of a general spread."
+)
+OVERVIEW_CAPTION = (
+    "Your En{z} at each of your points, in the order of the results tables, grouped by "
+    "device. Between the dashed lines a score is satisfactory (|En| ≤ {limit:g}{zlim}); "
+    "orange bars are questionable, red ones unsatisfactory. A bar ending in a dot goes "
+    "beyond the frame (|En| > {en_top:g}{ztop}). A pattern along a device, a bench or "
+    "a frequency points to a systematic cause."
+)
+EN_TOP, Z_TOP = 3.0, 5.0  # the overview's frame: ±3·limit for En, ±5 for z
+
+
+def _z_name(data: ReportData, index: int) -> str:
+    """z or z′ at point ``index`` (ISO 13528:2022 9.5: z′ where u(x_pt) > 0.3·σ_pt)."""
+    a = next((a for a in data.assigned if a.point == index), None)
+    if a is None or a.sigma_pt is None:
+        return "z"
+    return "z" if a.standard_uncertainty <= NEGLIGIBLE_FRACTION * a.sigma_pt else "z′"
+
+
+def _sorted_chart(data: ReportData, index: int, score: str) -> charts.SortedChart | None:
+    """The shared sorted chart of ``score`` ("en" or "z") at point ``index``."""
+    found = _round_charts(data)
+    key = ("sorted", score, index, data.en_limit)
+    chart = found.get(key)
+    if chart is None:
+        rows = data.round.point_scores.get(index)
+        if rows is None:
+            return None
+        ranked = sorted_scores(rows.labs, rows.en if score == "en" else rows.z)
+        if not ranked.labels:
+            return None
+        name = "En" if score == "en" else _z_name(data, index)
+        chart = found[key] = charts.sorted_chart(
+            ranked.labels,
+            tuple(ranked.values.tolist()),
+            limits=(data.en_limit,) if score == "en" else charts.Z_LIMITS,
+            title=f"{data.points[index].full_label}: {name} sorted",
+            ylabel=name,
+        )
+    assert isinstance(chart, charts.SortedChart)
+    return chart
+
+
+def _sorted_charts(data: ReportData) -> list[Flowable]:
+    out: list[Flowable] = []
+    names = set()
+    for index in data.chart_points:
+        for score in ("en", "z"):
+            chart = _sorted_chart(data, index, score)
+            if chart is not None:
+                out.append(RasterImage(chart.raster, chart.overlay(data.own_code)))
+                names.add(_z_name(data, index) if score == "z" else "En")
+    if not out:
+        return []
+    z = " or ".join(sorted(names - {"En"})) or "z"
+    own = f", yours ({data.own_code}) in pink" if data.own_code else ""
+    return [*out, caption(SORTED_CAPTION.format(own=own, limit=data.en_limit, z=z))]
+
+
+def _device_groups(data: ReportData) -> tuple[tuple[str, int, int], ...]:
+    """(device, first point, stop) of the report's points (ordered by device)."""
+    groups: list[tuple[str, int, int]] = []
+    for p in data.points:
+        if groups and groups[-1][0] == p.device:
+            groups[-1] = (p.device, groups[-1][1], p.index + 1)
+        else:
+            groups.append((p.device, p.index, p.index + 1))
+    return tuple(groups)
+
+
+def _bars_over(
+    frame: charts.OverviewFrame,
+    rows: list[ScoreRow],
+    values: list[float],
+    limits: tuple[float, ...],
+) -> RasterImage:
+    colours = charts.verdict_colours(np.array(values, dtype=float), limits)
+    return RasterImage(frame.raster, frame.bars([s.point for s in rows], values, colours))
+
+
+def _overview(data: ReportData) -> list[Flowable]:
+    """The participant's En and z at each of its points: a frame shared by every report of
+    the run, its bars drawn over it."""
+    own = [s for s in data.scores if s.lab == data.own_code]
+    if not own:
+        return []
+    groups, n, limit = _device_groups(data), len(data.points), data.en_limit
+    frame = charts.overview_frame(groups, n, limits=(limit,), top=EN_TOP * limit,
+                                  title="Your En at each point", ylabel="En")  # fmt: skip
+    out: list[Flowable] = [_bars_over(frame, own, [s.en for s in own], (limit,))]
+    with_z = [s for s in own if s.z is not None]
+    if with_z:
+        title = "Your z (or z′) at each point"
+        frame = charts.overview_frame(groups, n, limits=charts.Z_LIMITS, top=Z_TOP,
+                                      title=title, ylabel="z, z′")  # fmt: skip
+        out.append(_bars_over(frame, with_z, [s.z or 0.0 for s in with_z], charts.Z_LIMITS))
+    text = OVERVIEW_CAPTION.format(
+        z=" (above) and z or z′ (below)" if with_z else "", limit=limit,
+        zlim="; |z| ≤ 2" if with_z else "", en_top=EN_TOP * limit,
+        ztop=f", |z| > {Z_TOP:g}" if with_z else "",
+    )  # fmt: skip
+    return [*out, caption(text)]
+
+
 def point_charts_build(data: ReportData) -> int:
-    """Build the chart of every point of ``data``'s round now; the number built.  In a
-    large round each point is among some participant's worst, so every report process
-    needs them all: built together with the round's shared data (the batch's first
-    report), not one by one in whichever later reports need them."""
+    """Build the chart of every point of ``data``'s round now, with its sorted En and z
+    charts; the number of point charts built.  In a large round each point is among some
+    participant's worst, so every report process needs them all: built together with the
+    round's shared data (the batch's first report), not one by one in whichever later
+    reports need them."""
     assigned = {a.point: a for a in data.assigned}
+    for p in data.points:
+        for score in ("en", "z"):
+            _sorted_chart(data, p.index, score)
     return sum(_point_chart(data, p.index, assigned) is not None for p in data.points)
 
 

@@ -28,6 +28,7 @@ from analysis.reports.styles import BOLD, FONT, STYLES
 
 rl_config.invariant = 1
 END_MARK = "— End of report —"
+STATUS_WORD = {"final": "Final", "preliminary": "Preliminary", "preview": "Preview"}
 MARGIN = 18 * mm
 
 
@@ -61,10 +62,12 @@ class NumberedCanvas(Canvas):
     compressed as soon as the page is written, as reportlab would at save: the same bytes,
     but a summary of 20,000 pages holds tens of MB of page content, not GBs."""
 
-    def __init__(self, *args: Any, footer: str = "", date: str = "", **kwargs: Any) -> None:
+    def __init__(
+        self, *args: Any, header: str = "", footer: str = "", date: str = "", **kwargs: Any
+    ) -> None:
         super().__init__(*args, **kwargs)
         self._pages: list[dict[str, Any]] = []
-        self._footer_text = footer
+        self._header_text, self._footer_text = header, footer
         self.setDateFormatter(lambda *_: date)
 
     def showPage(self) -> None:
@@ -98,10 +101,14 @@ class NumberedCanvas(Canvas):
         page.Contents, page.stream = stream, None
 
     def _draw_footer(self, total: int) -> None:
-        width, _ = self._pagesize
+        """The page's furniture: the header (provider, round, report number) above a rule
+        and the footer (status, issue date, "Page n of m") below one."""
+        width, height = self._pagesize
         self.saveState()
         self.setFont(FONT, 7.5)
         self.setStrokeGray(0.6)
+        self.drawString(MARGIN, height - 11 * mm, self._header_text)
+        self.line(MARGIN, height - 12.5 * mm, width - MARGIN, height - 12.5 * mm)
         self.line(MARGIN, 13 * mm, width - MARGIN, 13 * mm)
         self.drawString(MARGIN, 9 * mm, self._footer_text)
         self.drawRightString(width - MARGIN, 9 * mm, f"Page {self._pageNumber} of {total}")
@@ -125,10 +132,11 @@ def render_report(data: ReportData) -> bytes:
         creator=f"proficiency {data.software_version}",
         invariant=1,
     )
-    footer = f"{data.provider} · {data.report_number} · {data.status} · issued " + (
+    header = f"{data.provider} · {data.comparison_code} · report {data.report_number}"
+    footer = f"{STATUS_WORD.get(data.status, data.status)} report · issued " + (
         data.issue_date.strftime("%Y-%m-%d")
     )
-    maker = functools.partial(NumberedCanvas, footer=footer, date=pdf_date(data))
+    maker = functools.partial(NumberedCanvas, header=header, footer=footer, date=pdf_date(data))
     doc.build(story(data), canvasmaker=maker)
     return sink.data
 
@@ -158,12 +166,15 @@ def _subject(data: ReportData) -> str:
 
 
 def story(data: ReportData) -> list[Flowable]:
-    """Every section of docs/domain.md §9 in order, ending with the end-of-report mark."""
+    """Every section of docs/domain.md §9 in order, ending with the end-of-report mark;
+    the performance summary follows the title block, each heading keeps with its next."""
     flow: list[Flowable] = sections.title_page(data)
-    flow += [PageBreak()]
-    flow += sections.confidentiality(data)
     if data.is_participant:
         flow += sections.own_performance(data)
+    else:
+        flow += sections.participants_performance(data)
+    flow += [PageBreak()]
+    flow += sections.confidentiality(data)
     flow += sections.design(data)
     flow += sections.artefacts(data)
     flow += sections.participants(data)
@@ -174,4 +185,75 @@ def story(data: ReportData) -> list[Flowable]:
     flow += sections.charts(data)
     flow += sections.comments(data)
     flow += [Spacer(1, 8 * mm), Paragraph(END_MARK, STYLES["end"])]
-    return flow
+    return keep_headings(flow)
+
+
+HEADINGS = frozenset({"h1", "h2"})
+
+
+def is_heading(f: Flowable) -> bool:
+    return isinstance(f, Paragraph) and f.style.name in HEADINGS
+
+
+def keep_headings(flow: list[Flowable]) -> list[Flowable]:
+    """Each heading bound to the flowable after it (:class:`WithNext`), from the end so a
+    heading followed by a heading keeps both with the text after them."""
+    out: list[Flowable] = []
+    for f in reversed(flow):
+        if is_heading(f) and out:
+            out[-1] = WithNext(f, out[-1])
+        else:
+            out.append(f)
+    return out[::-1]
+
+
+class WithNext(Flowable):
+    """A heading and what follows it: the heading is placed only where the start of what
+    follows fits below it (a table's first rows, a paragraph's first lines, the whole of
+    an image), else both go to the next page.  (reportlab's ``keepWithNext`` and
+    ``KeepTogether`` move a heading with the *whole* of what follows, so a heading over a
+    long table would always start a new page.)
+
+    It always splits: ``wrap`` asks for more than any page, and :meth:`split` gives the
+    heading and the following flowable (or its first part) back to the frame."""
+
+    def __init__(self, heading: Flowable, following: Flowable) -> None:
+        super().__init__()
+        self.heading, self.following = heading, following
+
+    def wrap(self, availWidth: float, availHeight: float) -> tuple[float, float]:
+        return availWidth, 0xFFFFFF  # force a split, as KeepTogether does
+
+    def getSpaceBefore(self) -> float:
+        return float(self.heading.getSpaceBefore())
+
+    def split(self, availWidth: float, availHeight: float) -> list[Flowable]:
+        frame = getattr(self, "_frame", None)
+        self.following.canv, self.following._frame = getattr(self, "canv", None), frame
+        try:
+            found = self.placed(availWidth, availHeight)
+        finally:
+            del self.following.canv, self.following._frame
+        if found or not getattr(frame, "_atTop", False):
+            return found
+        return [self.heading, self.following]  # at the top of a page: as without a heading
+
+    def placed(self, width: float, height: float) -> list[Flowable]:
+        """The heading and what follows (whole or split) if the start of what follows fits
+        in ``height`` below the heading, else nothing.  The frame has taken the heading's
+        space before; below the heading are its space after and the space before what
+        follows."""
+        _, heading = self.heading.wrap(width, height)
+        room = height - heading - self.heading.getSpaceAfter() - self.following.getSpaceBefore()
+        if room <= 0:
+            return []
+        if isinstance(self.following, WithNext):
+            rest = self.following.placed(width, room)
+        elif self.following.wrap(width, room)[1] <= room:
+            rest = [self.following]
+        else:
+            rest = list(self.following.split(width, room))
+        return [self.heading, *rest] if rest else []
+
+    def draw(self) -> None:  # never drawn: always split
+        raise AssertionError("WithNext is split, never drawn")

@@ -18,6 +18,7 @@ import numpy as np
 
 from analysis.reports.data import (
     PointInfo,
+    PointScores,
     PointValues,
     ResultRow,
     RoundStats,
@@ -47,15 +48,16 @@ def round_stats(
     points: Sequence[PointInfo],
     codes: Sequence[str],
     results: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    scores: tuple[np.ndarray, np.ndarray, np.ndarray],
+    scores: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     en_limit: float,
 ) -> RoundStats:
     """The figures of a round from columns: ``results`` = (point index, lab index into
-    ``codes``, value, expanded uncertainty), ``scores`` = (point index, lab index, En)."""
+    ``codes``, value, expanded uncertainty), ``scores`` = (point index, lab index, En, z
+    or z′ as it counts, NaN for none)."""
     rank = np.empty(len(codes), dtype=np.int64)
     rank[sorted(range(len(codes)), key=codes.__getitem__)] = np.arange(len(codes))
     r_point, r_lab, value, unc = (np.asarray(a) for a in results)
-    s_point, s_lab, en = (np.asarray(a) for a in scores)
+    s_point, s_lab, en, z = (np.asarray(a) for a in scores)
     r_point, r_lab = r_point.astype(np.int64), r_lab.astype(np.int64)
     s_point, s_lab = s_point.astype(np.int64), s_lab.astype(np.int64)
     order = np.lexsort((rank[r_lab], r_point))
@@ -86,7 +88,28 @@ def round_stats(
         point_values=by_point,
         largest_en=tuple((codes[i], float(largest[i])) for i in scored),
         frequency=_frequency(points, sorted_values),
+        point_scores=_point_scores(codes, rank, s_point, s_lab, en, z),
     )
+
+
+def _point_scores(
+    codes: Sequence[str],
+    rank: np.ndarray,
+    point: np.ndarray,
+    lab: np.ndarray,
+    en: np.ndarray,
+    z: np.ndarray,
+) -> dict[int, PointScores]:
+    """Per point, every lab's En and z in code order."""
+    order = np.lexsort((rank[lab], point))
+    point, lab = point[order], lab[order]
+    en, z = np.asarray(en, dtype=float)[order], np.asarray(z, dtype=float)[order]
+    return {
+        int(point[start]): PointScores(
+            tuple(codes[i] for i in lab[start:end].tolist()), en[start:end], z[start:end]
+        )
+        for start, end in _slices(point)
+    }
 
 
 def _frequency(
@@ -129,5 +152,6 @@ def stats_of_rows(
         np.array([s.point for s in scores], dtype=np.int64),
         np.array([lab[s.lab] for s in scores], dtype=np.int64),
         np.array([s.en for s in scores], dtype=float),
+        np.array([np.nan if s.z is None else s.z for s in scores], dtype=float),
     )
     return round_stats(points, codes, r_cols, s_cols, en_limit)

@@ -7,12 +7,23 @@ from html import escape
 
 import numpy as np
 from reportlab.lib.units import mm
-from reportlab.platypus import Flowable, KeepTogether, Paragraph, Spacer, Table, TableStyle
+from reportlab.lib.utils import ImageReader
+from reportlab.platypus import (
+    Flowable,
+    Image,
+    KeepTogether,
+    Paragraph,
+    Spacer,
+    Table,
+    TableStyle,
+)
 
 from analysis.consistency import statistic_text
 from analysis.reports import figures
 from analysis.reports.data import (
     ConsistencyRow,
+    Counts,
+    LabSummary,
     ReportData,
     ResultListing,
     ResultRow,
@@ -113,6 +124,8 @@ def table(
 
 
 def title_page(data: ReportData) -> list[Flowable]:
+    """The title block: the provider's logo, name, address and accreditation, the report's
+    identity, status, coordinators and authorisation."""
     kind = (
         f"Participant report for participant {data.own_code}"
         if data.is_participant
@@ -120,26 +133,48 @@ def title_page(data: ReportData) -> list[Flowable]:
     )
     rows = [
         ["Proficiency testing provider", data.provider],
+        *([["Address", data.provider_address]] if data.provider_address else []),
+        *([["Accreditation", data.provider_accreditation]] if data.provider_accreditation else []),
         ["Comparison", f"{data.comparison_code} — {data.comparison_title}"],
         ["Report number", data.report_number],
         ["Issue date", data.issue_date.strftime("%Y-%m-%d")],
         ["Status", STATUS_TEXT.get(data.status, data.status)],
-        ["Coordinators", ", ".join(data.coordinators) or "–"],
+        ["Coordinators", "; ".join(data.coordinators) or "–"],
         ["Authorised by", data.authorised_by or "not yet authorised"],
         ["Software", f"proficiency {data.software_version}"],
     ]
     t = Table([[para(escape(a)), para(escape(b))] for a, b in rows], colWidths=[55 * mm, 119 * mm])
-    t.setStyle(TableStyle([("LINEBELOW", (0, 0), (-1, -1), 0.25, GRID)]))
+    t.setStyle(
+        TableStyle(
+            [("LINEBELOW", (0, 0), (-1, -1), 0.25, GRID), ("VALIGN", (0, 0), (-1, -1), "TOP")]
+        )
+    )
     return [
-        Spacer(1, 30 * mm),
+        *logo(data.provider_logo),
         para(escape(data.provider), "subtitle"),
         para("Proficiency test report", "title"),
         para(escape(kind), "subtitle"),
-        Spacer(1, 10 * mm),
         t,
-        Spacer(1, 20 * mm),
+        Spacer(1, 4 * mm),
         para(_authorisation(data)),
     ]
+
+
+LOGO_HEIGHT = 16 * mm
+
+
+def logo(path: str) -> list[Flowable]:
+    """The provider's logo, 16 mm high, at the left; nothing when ``path`` is empty or not
+    a readable PNG or JPEG (a report is never refused for its furniture)."""
+    if not path:
+        return []
+    try:
+        width, height = ImageReader(path).getSize()
+    except (OSError, ValueError):  # missing, unreadable or not an image
+        return []
+    image = Image(path, width=LOGO_HEIGHT * width / height, height=LOGO_HEIGHT)
+    image.hAlign = "LEFT"
+    return [image, Spacer(1, 3 * mm)]
 
 
 def _authorisation(data: ReportData) -> str:
@@ -158,38 +193,148 @@ def confidentiality(data: ReportData) -> list[Flowable]:
     return [para("1 Confidentiality", "h1"), para(CONFIDENTIALITY)]
 
 
+SQU = (
+    "S satisfactory, Q questionable (a warning signal), U unsatisfactory (an action signal): "
+    "En is satisfactory at |En| ≤ {limit:g}, else unsatisfactory; z (z′ where u(x_pt) > "
+    "0.3·σ_pt, ISO 13528:2022 9.5) is satisfactory at |z| ≤ 2, questionable for 2 < |z| < 3, "
+    "unsatisfactory at |z| ≥ 3 and counted only at points with a σ_pt."
+)
+
+
+def _squ(c: Counts) -> list[str]:
+    return [str(c.satisfactory), str(c.questionable), str(c.unsatisfactory)]
+
+
+def _largest(x: float | None) -> str:
+    return "–" if x is None else numbers.fixed(x, 2)
+
+
 def own_performance(data: ReportData) -> list[Flowable]:
-    """The participant's own scores explained in plain words, grouped by device."""
-    own = [s for s in data.scores if s.lab == data.own_code]
-    bad = sum(abs(s.en) > data.en_limit for s in own)
-    flow: list[Flowable] = [
-        para(f"Your results (participant {data.own_code})", "h1"),
-        para(
-            f"{len(own) - bad} of {len(own)} of your results are compatible with the assigned "
-            f"value (|En| ≤ {data.en_limit:g}); {bad} are not."
-        ),
-    ]
-    for device, rows in _by_device(data, own):
-        flow.append(para(escape(device), "h2"))
-        flow += [para(_sentence(data, s), "bullet") for s in rows]
+    """The participant's performance summary, first (docs/domain.md §4, "Performance
+    summary"): one or two sentences, its counts by device, bench and axis, its largest
+    scores; the results section lists every one."""
+    mine = data.performance
+    flow: list[Flowable] = [para(f"Performance summary of participant {data.own_code}", "h1")]
+    if mine is None:
+        return [*flow, para("This report has no scored result of yours.")]
+    flow.append(para(_performance_text(data, mine)))
+    has_z = bool(mine.total.z.scored or mine.total.z.not_scored)
+    head = ["", "n", "En S", "En Q", "En U", *(["z S", "z Q", "z U"] if has_z else [])]
+    rows, bad = [head], []
+    lines = [("All results", mine.total)]
+    lines += [(f"{heading} {line.level}", line) for heading, found in mine.breakdowns
+              for line in found]  # fmt: skip
+    for label, line in lines:
+        n = line.en.scored + line.en.not_scored
+        rows.append([label, str(n), *_squ(line.en), *(_squ(line.z) if has_z else [])])
+        bad += [(len(rows) - 1, c) for c, k in ((4, line.en.unsatisfactory),
+                (7, line.z.unsatisfactory if has_z else 0)) if k]  # fmt: skip
+    widths = [58 * mm, 14 * mm] + [14 * mm] * (len(head) - 2)
+    flow += [table(rows, widths, (), bad), para(SQU.format(limit=data.en_limit), "small")]
+    flow += _worst_table(data, mine)
     return flow
 
 
-def _sentence(data: ReportData, s: ScoreRow) -> str:
-    where = escape(data.points[s.point].full_label)
-    if abs(s.en) <= data.en_limit:
-        return f"• Your result for {where} is compatible with the assigned value (En = {s.en:.2f})."
-    return (
-        f"• Your result for {where} is <b>not compatible</b> with the assigned value "
-        f"(En = {s.en:.2f}): please review the measurement and its uncertainty budget."
+def _performance_text(data: ReportData, mine: LabSummary) -> str:
+    en, z, limit = mine.total.en, mine.total.z, data.en_limit
+    text = (
+        f"Of your {mine.n_results} results, {en.satisfactory} are satisfactory in En "
+        f"(|En| ≤ {limit:g}) and {en.unsatisfactory} unsatisfactory"
+        + (f", {en.not_scored} not scored" if en.not_scored else "")
+        + f"; the largest |En| is {_largest(mine.max_en)}."
+    )
+    if not (z.scored or z.not_scored):
+        return text + " No z score: none of your points has a σ_pt."
+    return text + (
+        f" In z (or z′), {z.satisfactory} of {z.scored} are satisfactory, {z.questionable} "
+        f"questionable and {z.unsatisfactory} unsatisfactory; the largest |z| is "
+        f"{_largest(mine.max_z)}. Section 6 lists every result with its scores."
     )
 
 
-def _by_device(data: ReportData, rows: Sequence[ScoreRow]) -> list[tuple[str, list[ScoreRow]]]:
-    out: dict[str, list[ScoreRow]] = {}
-    for s in rows:
-        out.setdefault(data.points[s.point].device, []).append(s)
-    return list(out.items())
+def _worst_table(data: ReportData, mine: LabSummary) -> list[Flowable]:
+    """The largest |En| and |z| results, whatever their flags (the first places to look):
+    one row per result, |En|'s first."""
+    rows = [["Largest scores", "Point", "Score", "Flag"]]
+    bad = []
+    for s in mine.worst_en:
+        rows.append(["|En|", data.points[s.point].full_label, f"En {s.en:.2f}", s.flag])
+        if abs(s.en) > data.en_limit:
+            bad.append((len(rows) - 1, 2))
+    for s in mine.worst_z:
+        rows.append(["|z|", data.points[s.point].full_label, f"{s.z_kind} {num(s.z, '.2f')}",
+                     s.z_flag])  # fmt: skip
+        if s.z_flag == "action":
+            bad.append((len(rows) - 1, 2))
+    if len(rows) == 1:
+        return []
+    widths = [26 * mm, 86 * mm, 24 * mm, 26 * mm]
+    return [Spacer(1, 2 * mm), table(rows, widths, (), bad)]
+
+
+def participants_performance(data: ReportData) -> list[Flowable]:
+    """Every participant's counts in one table (the coordinator's performance page)."""
+    found = data.performances
+    flow: list[Flowable] = [para("Performance of the participants", "h1")]
+    if not found:
+        return [*flow, para("No participant has a scored result in this run.")]
+    signals = sum(1 for lab in found if lab.total.en.unsatisfactory or lab.total.z.unsatisfactory)
+    flow.append(para(
+        f"{counted(len(found), 'participant')} with scored results; {signals} with at least "
+        "one unsatisfactory En or z. Per participant: its number of results, the En and z "
+        "(or z′) counts and its largest |En| and |z|."
+    ))  # fmt: skip
+    head = ["Code", "n", "En S", "En Q", "En U", "z S", "z Q", "z U", "max |En|", "max |z|"]
+    rows: list[list[str]] = []
+    bad: list[tuple[int, int]] = []
+    for lab in found:
+        en, z = lab.total.en, lab.total.z
+        rows.append([lab.code, str(lab.n_results), *_squ(en), *_squ(z), _largest(lab.max_en),
+                     _largest(lab.max_z)])  # fmt: skip
+        bad += [(len(rows), c) for c, k in ((4, en.unsatisfactory), (7, z.unsatisfactory)) if k]
+    widths = [22 * mm, 14 * mm] + [14 * mm] * 6 + [19 * mm, 19 * mm]
+    return [*flow, PagedTable(head, rows, widths, bad), para(SQU.format(limit=data.en_limit),
+                                                            "small")]  # fmt: skip
+
+
+class PagedTable(Flowable):
+    """Rows of single-line cells under a header repeated on every page, built one page at
+    a time as :class:`ListingTable` is (one ``Table`` of ten thousand rows costs quadratic
+    time at its page breaks).  ``bad`` holds (row, column) of red cells, rows from 1."""
+
+    def __init__(
+        self,
+        head: list[str],
+        rows: list[list[str]],
+        widths: Sequence[float],
+        bad: Sequence[tuple[int, int]] = (),
+        start: int = 0,
+    ) -> None:
+        super().__init__()
+        self.head, self.rows, self.widths, self.bad, self.start = head, rows, widths, bad, start
+
+    def wrap(self, availWidth: float, availHeight: float) -> tuple[float, float]:
+        self.width, self.height = sum(self.widths), (len(self.rows) - self.start + 1) * ROW_HEIGHT
+        return self.width, self.height
+
+    def split(self, availWidth: float, availHeight: float) -> list[Flowable]:
+        fit = min(int(availHeight // ROW_HEIGHT) - 1, len(self.rows) - self.start)
+        if fit <= 0:
+            return []
+        part = self.table(self.start, self.start + fit)
+        if self.start + fit == len(self.rows):
+            return [part]
+        rest = PagedTable(self.head, self.rows, self.widths, self.bad, self.start + fit)
+        return [part, rest]
+
+    def draw(self) -> None:
+        part = self.table(self.start, len(self.rows))
+        part.wrap(self.width, self.height)
+        part.drawOn(self.canv, 0, 0)
+
+    def table(self, start: int, stop: int) -> Table:
+        bad = [(r - start, c) for r, c in self.bad if start < r <= stop]
+        return table([self.head, *self.rows[start:stop]], self.widths, (), bad)
 
 
 def design(data: ReportData) -> list[Flowable]:

@@ -26,6 +26,7 @@ STYLES: dict[str, ParagraphStyle] = {
     "h2": _style("h2", 10.5, bold=True, spaceBefore=8, spaceAfter=4),
     "body": _style("body", 9, spaceAfter=4),
     "small": _style("small", 7.5),
+    "caption": _style("caption", 7.5, spaceBefore=2, spaceAfter=8, textColor="#495057"),
     "cell": _style("cell", 7.5),
     "bullet": _style("bullet", 8.5, leftIndent=10, bulletIndent=2, spaceAfter=2),
     "end": _style("end", 10, bold=True, alignment=TA_CENTER),
