@@ -69,6 +69,8 @@ CALL_CODE = "IMU-2025-CALL"
 CALL_ENROLMENT = dt.timedelta(days=60)
 CALL_DEADLINE = dt.timedelta(days=120)
 COORDINATORS_GROUP = "coordinators"
+#: the demo coordinator's name, as the reports print it ("Elena Conti, coordinator")
+DEMO_COORDINATOR_NAME = ("Elena", "Conti")
 NOMINAL = 418.0
 REFERENCE_DATA = Path(settings.BASE_DIR) / "docs" / "reference-data"  # published tables
 
@@ -191,6 +193,9 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
     if coordinator.is_staff:  # demo databases made before the admin was closed to them
         coordinator.is_staff = False
         coordinator.save(update_fields=["is_staff"])
+    if not coordinator.get_full_name():  # the reports name coordinators by full name
+        coordinator.first_name, coordinator.last_name = DEMO_COORDINATOR_NAME
+        coordinator.save(update_fields=["first_name", "last_name"])
     coordinator.groups.add(_coordinators_group())
     comparison.coordinators.add(coordinator)
     admin = _user(summary, "admin", password, staff=True)

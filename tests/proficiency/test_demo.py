@@ -72,6 +72,7 @@ def test_demo_accounts_and_roles():
     assert users.get(username="admin").is_superuser
     coordinator = users.get(username="coordinator")
     assert coordinator.check_password("demo-password-1")
+    assert coordinator.get_full_name() == "Elena Conti"  # as the reports name coordinators
     assert coordinator.groups.filter(name="coordinators").exists()
     # least privilege: no staff flag, and the one model permission coordinators use
     assert not coordinator.is_staff
