@@ -330,7 +330,27 @@ class Report(models.Model):
         return f"{self.get_kind_display()} v{self.version} ({self.comparison.code})"
 
 
-class ReportBatch(models.Model):
+class ClaimedJob(models.Model):
+    """The fields of a background job claimed by one task at a time (common/jobs.py): the
+    claims so far, the current claim's token and task, its heartbeat, and its times."""
+
+    attempts = models.PositiveSmallIntegerField(default=0, help_text="claims so far")
+    token = models.CharField(max_length=32, blank=True, help_text="the current claim")
+    claimed_by = models.CharField(
+        max_length=64, blank=True, help_text="task id of the claim, or of the task last sent"
+    )
+    heartbeat_at = models.DateTimeField(
+        null=True, blank=True, help_text="last sign of life of its task (or when it was sent)"
+    )
+    created_at = models.DateTimeField(auto_now_add=True)
+    started_at = models.DateTimeField(null=True, blank=True)
+    finished_at = models.DateTimeField(null=True, blank=True)
+
+    class Meta:
+        abstract = True
+
+
+class ReportBatch(ClaimedJob):
     """A persisted job issuing reports of one run: the summary, or the participant reports
     of a batch of participants (docs/lifecycles.md §4).
 
@@ -368,19 +388,8 @@ class ReportBatch(models.Model):
     )
     participant_ids = models.JSONField(default=list, blank=True)
     status = models.CharField(max_length=10, choices=Status.choices, default=Status.PENDING)
-    attempts = models.PositiveSmallIntegerField(default=0, help_text="claims so far")
-    token = models.CharField(max_length=32, blank=True, help_text="the current claim")
-    claimed_by = models.CharField(
-        max_length=64, blank=True, help_text="task id of the claim, or of the task last sent"
-    )
-    heartbeat_at = models.DateTimeField(
-        null=True, blank=True, help_text="last sign of life of its task (or when it was sent)"
-    )
     error = models.TextField(blank=True, help_text="why the last attempt failed")
     report_ids = models.JSONField(default=list, blank=True, help_text="the reports issued")
-    created_at = models.DateTimeField(auto_now_add=True)
-    started_at = models.DateTimeField(null=True, blank=True)
-    finished_at = models.DateTimeField(null=True, blank=True)
 
     class Meta:
         ordering = ["run_id", "report_status", "-kind", "index"]
@@ -424,7 +433,7 @@ class ReportDownload(models.Model):
         return f"{self.report} downloaded at {self.at:%Y-%m-%d %H:%M}"
 
 
-class Publication(models.Model):
+class Publication(ClaimedJob):
     """A persisted job publishing a comparison's current run (docs/lifecycles.md §1):
     ``pending → running → succeeded | failed``.
 
@@ -459,17 +468,6 @@ class Publication(models.Model):
     stage = models.CharField(max_length=80, blank=True)
     error = models.TextField(blank=True)
     report_ids = models.JSONField(default=list, blank=True, help_text="the final reports issued")
-    attempts = models.PositiveSmallIntegerField(default=0, help_text="claims so far")
-    token = models.CharField(max_length=32, blank=True, help_text="the current claim")
-    claimed_by = models.CharField(
-        max_length=64, blank=True, help_text="task id of the claim, or of the task last sent"
-    )
-    heartbeat_at = models.DateTimeField(
-        null=True, blank=True, help_text="last sign of life of its task (or when it was sent)"
-    )
-    created_at = models.DateTimeField(auto_now_add=True)
-    started_at = models.DateTimeField(null=True, blank=True)
-    finished_at = models.DateTimeField(null=True, blank=True)
 
     class Meta:
         ordering = ["-created_at", "-pk"]
@@ -493,7 +491,7 @@ def archive_path(instance: RoundArchive, filename: str) -> str:
     return f"archives/{instance.comparison.code}/{secrets.token_urlsafe(24)}.zip"
 
 
-class RoundArchive(models.Model):
+class RoundArchive(ClaimedJob):
     """One ZIP of a run's outputs for one audience (docs/interfaces.md §6): the coordinators'
     (``participant`` null) or one participant's.  A persisted job, ``pending → running →
     ready | failed`` (pending is shown as "queued"), claimed, kept alive and re-queued by the
@@ -526,17 +524,6 @@ class RoundArchive(models.Model):
     sha256 = models.CharField(max_length=64, blank=True)
     report_ids = models.JSONField(default=list, blank=True, help_text="the reports it holds")
     error = models.TextField(blank=True, help_text="why the last attempt failed")
-    attempts = models.PositiveSmallIntegerField(default=0, help_text="claims so far")
-    token = models.CharField(max_length=32, blank=True, help_text="the current claim")
-    claimed_by = models.CharField(
-        max_length=64, blank=True, help_text="task id of the claim, or of the task last sent"
-    )
-    heartbeat_at = models.DateTimeField(
-        null=True, blank=True, help_text="last sign of life of its task (or when it was sent)"
-    )
-    created_at = models.DateTimeField(auto_now_add=True)
-    started_at = models.DateTimeField(null=True, blank=True)
-    finished_at = models.DateTimeField(null=True, blank=True)
 
     class Meta:
         ordering = ["run_id", "participant_id"]

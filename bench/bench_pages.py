@@ -97,9 +97,14 @@ def _publish_demo():
     c, p = f"/coordinator/{comparison.code}/", f"/results/{comparison.code}/"
     tail = ["scores/", "scores/?order=en", f"charts/?point={point}", "compatibility/",
             "compatibility/?factor=axis", "consistency/"]  # fmt: skip
+    lab = comparison.participants.order_by("code").values_list("code", flat=True).first()
+    downloads = [f"charts/{name}.{ext}?point={point}" for name in ("z", "en-bars", "youden")
+                 for ext in ("svg", "png")]  # fmt: skip
     pages = {
-        "coordinator": [c + "results/", c + "performance/"] + [c + t for t in tail],
-        "participant": [p] + [p + t for t in tail],
+        "coordinator": [c + "results/", c + "performance/", f"{c}performance/{lab}/"]
+        + [c + t for t in tail]
+        + [c + "charts/mandel-h.svg"],
+        "participant": [p] + [p + t for t in tail] + [p + d for d in downloads] + ["/lab/history/"],
     }
     return comparison.code, pages
 
@@ -144,6 +149,37 @@ def _large(labs: int, n: int) -> None:
         times["en"].append(time.perf_counter() - start)
     for name, t in times.items():
         print(f"{labs}-lab {name} chart: {statistics.median(t) * 1000:.0f} ms (target < 1000 ms)")
+    _large_standard(codes, values, big_u, en, n)
+
+
+def _large_standard(codes, values, big_u, en, n: int) -> None:
+    """The standard graphs (docs/domain.md §11.5) of the same thousand-lab point."""
+    import numpy as np
+
+    from analysis import standard_charts as sc
+
+    rng = np.random.default_rng(2)
+    other = values + rng.normal(0, 0.3, len(codes))
+    builds = {
+        "z": lambda: sc.z_chart(codes, (values - 100) / 0.5, title="z", highlight="L0007"),
+        "en-bars": lambda: sc.en_bar_chart(codes, en, title="En", highlight="L0007"),
+        "density": lambda: sc.density_chart(values, assigned_value=100.0,
+                                            assigned_expanded_uncertainty=0.1, title="density",
+                                            unit="mV/(m/s²)", own_value=float(values[7])),
+        "doe": lambda: sc.doe_chart(codes, values - 100, big_u, title="DoE", unit="mV/(m/s²)",
+                                    highlight="L0007"),
+        "youden": lambda: sc.youden_chart(codes, values, other, assigned_x=100.0,
+                                          assigned_y=100.0, x_label="a", y_label="b",
+                                          unit="mV/(m/s²)", highlight="L0007"),
+    }  # fmt: skip
+    for name, build in builds.items():
+        t = []
+        for _ in range(n):
+            start = time.perf_counter()
+            build()
+            t.append(time.perf_counter() - start)
+        print(f"{len(codes)}-lab {name} chart: {statistics.median(t) * 1000:.0f} ms "
+              "(target < 1000 ms)")  # fmt: skip
 
 
 if __name__ == "__main__":

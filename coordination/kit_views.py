@@ -76,6 +76,14 @@ def parse_plan(text: str, comparison: Comparison) -> list[kits.SlotPlan]:
     return plan
 
 
+def _refused(request: AuthenticatedHttpRequest, comparison: Comparison, kit: Kit,
+             exc: ApplicationError) -> HttpResponse:  # fmt: skip
+    """The kits page again with the refusal under the kit: the message, then each bad line."""
+    lines = [exc.message] + [f"line {e['row']}: {e['message']}" if e.get("row") else
+                             e["message"] for e in exc.errors]  # fmt: skip
+    return _page(request, comparison, status=exc.status_code, plan_errors={kit.pk: lines})
+
+
 def _kit(comparison: Comparison, pk: int) -> Kit:
     kit = Kit.objects.filter(comparison=comparison, pk=pk).first()
     if kit is None:
@@ -142,9 +150,7 @@ def kit_plan(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpRespo
             raise ValidationFailed("Give the circulation plan, one slot per line.")
         kits.circulation_set(kit=kit, plan=parse_plan(form.cleaned_data["plan"], comparison))
     except ApplicationError as exc:
-        lines = [exc.message] + [f"line {e['row']}: {e['message']}" if e.get("row") else
-                                 e["message"] for e in exc.errors]  # fmt: skip
-        return _page(request, comparison, status=400, plan_errors={kit.pk: lines})
+        return _refused(request, comparison, kit, exc)
     messages.success(request, f"The circulation plan of {kit.name} is saved.")
     return redirect("coordinator:kits", code=code)
 
@@ -159,8 +165,7 @@ def kit_dispatch(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpR
         kits.handover_dispatch(kit=kit, from_slot=None, user=request.user,
                                carrier_note=request.POST.get("carrier_note", ""))  # fmt: skip
     except ApplicationError as exc:
-        return _page(request, comparison, status=exc.status_code,
-                     plan_errors={kit.pk: [exc.message]})  # fmt: skip
+        return _refused(request, comparison, kit, exc)
     messages.success(request, f"{kit.name} is logged as sent to its first holder.")
     return redirect("coordinator:kits", code=code)
 
@@ -179,8 +184,7 @@ def kit_returned(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpR
                               condition=request.POST.get("condition", ""),
                               note=request.POST.get("condition_note", ""))  # fmt: skip
     except ApplicationError as exc:
-        return _page(request, comparison, status=exc.status_code,
-                     plan_errors={kit.pk: [exc.message]})  # fmt: skip
+        return _refused(request, comparison, kit, exc)
     messages.success(request, f"The return of {kit.name} is logged.")
     return redirect("coordinator:kits", code=code)
 
@@ -197,8 +201,6 @@ def kit_measurements(request: AuthenticatedHttpRequest, code: str, pk: int) -> H
             raise ValidationFailed("Paste at most 10 MB of measurements.")
         n = kits.kit_measurements_replace(kit=kit, text=text)
     except ApplicationError as exc:
-        lines = [exc.message] + [f"line {e['row']}: {e['message']}" if e.get("row") else
-                                 e["message"] for e in exc.errors]  # fmt: skip
-        return _page(request, comparison, status=400, plan_errors={kit.pk: lines})
+        return _refused(request, comparison, kit, exc)
     messages.success(request, f"{n} pilot measurement{'s' if n != 1 else ''} of {kit.name} stored.")
     return redirect("coordinator:kits", code=code)
