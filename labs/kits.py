@@ -270,44 +270,58 @@ def _finite(text: str, what: str, *, positive: bool = False) -> float:
     return value
 
 
-def _measurement(kit: Kit, row: list[str], points: dict[PointKey, int]) -> KitMeasurement:
-    if len(row) not in (8, 9):
-        raise ValueError(f"{len(row)} fields; give {', '.join(MEASUREMENT_COLUMNS)} (k optional)")
-    device, axis, freq, bench, direction, day, value, big_u, *k = (c.strip() for c in row)
-    key = PointKey(device, axis, _finite(freq, "frequency_hz", positive=True), bench, direction)
+def _measurement(kit: Kit, row: dict[str, str], points: dict[PointKey, int]) -> KitMeasurement:
+    def cell(name: str) -> str:
+        return (row.get(name) or "").strip()
+
+    text = cell("amplitude_m_s2")
+    amplitude = _finite(text, "amplitude_m_s2", positive=True) if text else None
+    frequency = _finite(cell("frequency_hz"), "frequency_hz", positive=True)
+    key = PointKey(cell("device"), cell("axis"), frequency, cell("bench"), cell("direction"),
+                   amplitude)  # fmt: skip
     point = points.get(key)
     if point is None:
         raise ValueError(f"{point_label(key)} is not a measurement point of this round")
     try:
-        measured_on = dt.date.fromisoformat(day)
+        measured_on = dt.date.fromisoformat(cell("measured_on"))
     except ValueError:
-        raise ValueError(f"measured_on must be a date YYYY-MM-DD, got {day[:20]!r}") from None
+        raise ValueError(
+            f"measured_on must be a date YYYY-MM-DD, got {cell('measured_on')[:20]!r}"
+        ) from None
+    k = cell("coverage_factor")
     return KitMeasurement(
         kit=kit, measurement_point_id=point, measured_on=measured_on,
-        value=_finite(value, "sensitivity"),
-        expanded_uncertainty=_finite(big_u, "expanded_uncertainty", positive=True),
-        coverage_factor=_finite(k[0], "coverage_factor", positive=True) if k and k[0] else 2.0,
+        value=_finite(cell("sensitivity"), "sensitivity"),
+        expanded_uncertainty=_finite(cell("expanded_uncertainty"), "expanded_uncertainty",
+                                     positive=True),
+        coverage_factor=_finite(k, "coverage_factor", positive=True) if k else 2.0,
     )  # fmt: skip
 
 
 @transaction.atomic
 def kit_measurements_replace(*, kit: Kit, text: str) -> int:
-    """Replace the pilot's measurements of ``kit`` with the CSV ``text`` (a header line
-    naming :data:`MEASUREMENT_COLUMNS`, then one line per measurement); every bad line is
-    named and nothing is stored unless all are good."""
-    lines = list(csv.reader(io.StringIO(text)))
-    rows = [r for r in lines[1:] if any(c.strip() for c in r)]
-    if not lines or [c.strip() for c in lines[0]][:8] != list(MEASUREMENT_COLUMNS[:8]):
+    """Replace the pilot's measurements of ``kit`` with the CSV ``text``: a header line
+    naming the columns (:data:`MEASUREMENT_COLUMNS`, in any order; ``amplitude_m_s2`` for
+    points that have one, ``coverage_factor`` optional), then one line per measurement.
+    Every bad line is named and nothing is stored unless all are good."""
+    reader = csv.DictReader(io.StringIO(text))
+    header = {(c or "").strip() for c in reader.fieldnames or []}
+    missing = [c for c in MEASUREMENT_COLUMNS[:8] if c not in header]
+    if missing:
         raise ValidationFailed(
-            f"The first line must name the columns: {', '.join(MEASUREMENT_COLUMNS)}."
+            f"The first line must name the columns {', '.join(MEASUREMENT_COLUMNS)} "
+            f"(amplitude_m_s2 where a point has one); missing: {', '.join(missing)}."
         )
+    rows = [r for r in reader if any((v or "").strip() for v in r.values() if isinstance(v, str))]
     if len(rows) > MAX_MEASUREMENTS:
         raise ValidationFailed(f"At most {MAX_MEASUREMENTS} measurements per kit.")
     points = comparison_table(kit.comparison).point_ids
     found, errors, seen = [], [], set()
     for n, row in enumerate(rows, start=2):
         try:
-            m = _measurement(kit, row, points)
+            if None in row:
+                raise ValueError("more fields than the header names")
+            m = _measurement(kit, {k.strip(): v for k, v in row.items()}, points)
         except ValueError as exc:
             errors.append({"row": n, "message": str(exc)})
             continue

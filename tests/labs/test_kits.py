@@ -228,3 +228,20 @@ def test_bad_pilot_lines_are_named_and_nothing_is_stored(round_):
         [],
         ["MEMS 1, X, 5 Hz, linear vertical: measured on one date only, no drift can be judged"],
     )
+
+
+def test_pilot_columns_by_name_in_any_order_with_a_points_amplitude(round_):
+    from tests.factories import MeasurementPointFactory
+
+    _, kit, _, _, devices = round_
+    MeasurementPointFactory.create(device=devices[0], frequency_hz=5.0, amplitude_m_s2=14.77,
+                                   bench="curvilinear", direction="radial")  # fmt: skip
+    text = ("measured_on,sensitivity,expanded_uncertainty,coverage_factor,device,axis,"
+            "frequency_hz,bench,direction,amplitude_m_s2\n"
+            "2027-01-04,418.1,0.02,2,MEMS 1,X,5,curvilinear,radial,14.77\n"
+            "2027-02-04,418.2,0.02,,MEMS 1,X,5,curvilinear,radial,14.77\n")  # fmt: skip
+    assert kit_measurements_replace(kit=kit, text=text) == 2
+    assert sorted(KitMeasurement.objects.values_list("value", "coverage_factor")) == [
+        (418.1, 2.0), (418.2, 2.0)]  # fmt: skip
+    with pytest.raises(ValidationFailed, match="missing: measured_on"):
+        kit_measurements_replace(kit=kit, text=text.replace("measured_on", "when"))
