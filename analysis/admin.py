@@ -9,6 +9,7 @@ from analysis.models import (
     Report,
     ReportBatch,
     ReportDownload,
+    RoundArchive,
     Score,
 )
 from common.admin_site import RecordedByServicesAdmin
@@ -92,3 +93,12 @@ class ReportDownloadAdmin(RecordedByServicesAdmin):
     list_filter = ["report__comparison", "report__kind"]
     search_fields = ["report__comparison__code", "user__username", "laboratory__name"]
     raw_id_fields = ["report"]
+
+
+@admin.register(RoundArchive)
+class RoundArchiveAdmin(RecordedByServicesAdmin):
+    list_display = ["id", "comparison", "run", "participant", "status", "size", "attempts",
+                    "finished_at"]  # fmt: skip
+    list_filter = ["status", "comparison"]
+    search_fields = ["comparison__code", "participant__code", "error"]
+    raw_id_fields = ["run", "participant"]

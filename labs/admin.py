@@ -4,6 +4,9 @@ from rest_framework_api_key.admin import APIKeyModelAdmin
 from common.admin_site import RecordedByServicesAdmin, ViewOnly
 from labs.models import (
     Enrolment,
+    Handover,
+    KitMeasurement,
+    KitSlot,
     LabAPIKey,
     Laboratory,
     Membership,
@@ -161,3 +164,27 @@ class RawRecomputationAdmin(CreatedByUploadOnly):
     search_fields = ["record__participant__code", "record__data_name"]
     list_select_related = ["record__participant"]
     raw_id_fields = ["record"]
+
+
+@admin.register(KitSlot)
+class KitSlotAdmin(RecordedByServicesAdmin):
+    list_display = ["kit", "position", "participant", "starts_on", "ends_on"]
+    list_filter = ["kit__comparison", "kit"]
+    search_fields = ["kit__name", "participant__code", "kit__comparison__code"]
+    list_select_related = ["kit__comparison", "participant"]
+
+
+@admin.register(Handover)
+class HandoverAdmin(RecordedByServicesAdmin):
+    list_display = ["kit", "from_slot", "to_slot", "dispatched_at", "received_at", "condition"]
+    list_filter = ["condition", "kit__comparison"]
+    search_fields = ["kit__name", "kit__comparison__code", "carrier_note", "condition_note"]
+    list_select_related = ["kit__comparison", "from_slot", "to_slot"]
+
+
+@admin.register(KitMeasurement)
+class KitMeasurementAdmin(RecordedByServicesAdmin):
+    list_display = ["kit", "measurement_point", "measured_on", "value", "expanded_uncertainty"]
+    list_filter = ["kit__comparison", "kit"]
+    search_fields = ["kit__name", "kit__comparison__code", "measurement_point__device__name"]
+    list_select_related = ["kit__comparison", "measurement_point__device"]

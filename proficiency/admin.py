@@ -1,6 +1,6 @@
 from django.contrib import admin
 
-from proficiency.models import Comparison, Device, MeasurementPoint, ReferenceValue
+from proficiency.models import Comparison, Device, Kit, KitItem, MeasurementPoint, ReferenceValue
 
 
 class DeviceInline(admin.TabularInline):
@@ -49,3 +49,18 @@ class ReferenceValueAdmin(admin.ModelAdmin):
     list_filter = ["source", "measurement_point__comparison"]
     search_fields = ["measurement_point__device__name", "note"]
     list_select_related = ["measurement_point__device"]
+
+
+@admin.register(Kit)
+class KitAdmin(admin.ModelAdmin):
+    list_display = ["name", "comparison"]
+    list_filter = ["comparison"]
+    search_fields = ["name", "comparison__code"]
+
+
+@admin.register(KitItem)
+class KitItemAdmin(admin.ModelAdmin):
+    list_display = ["kit", "device", "serial"]
+    list_filter = ["kit__comparison"]
+    search_fields = ["serial", "kit__name", "device__name"]
+    list_select_related = ["kit__comparison", "device"]
