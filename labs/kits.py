@@ -304,7 +304,13 @@ def kit_measurements_replace(*, kit: Kit, text: str) -> int:
     naming the columns (:data:`MEASUREMENT_COLUMNS`, in any order; ``amplitude_m_s2`` for
     points that have one, ``coverage_factor`` optional), then one line per measurement.
     Every bad line is named and nothing is stored unless all are good."""
-    reader = csv.DictReader(io.StringIO(text))
+    try:
+        return _measurements_store(kit, csv.DictReader(io.StringIO(text)))
+    except csv.Error as exc:  # a field over csv's limit, a broken quote: say so, store nothing
+        raise ValidationFailed(f"The pilot's measurements are not a readable CSV: {exc}.") from None
+
+
+def _measurements_store(kit: Kit, reader: csv.DictReader[str]) -> int:
     header = {(c or "").strip() for c in reader.fieldnames or []}
     missing = [c for c in MEASUREMENT_COLUMNS[:8] if c not in header]
     if missing:
@@ -322,6 +328,8 @@ def kit_measurements_replace(*, kit: Kit, text: str) -> int:
             if None in row:
                 raise ValueError("more fields than the header names")
             m = _measurement(kit, {k.strip(): v for k, v in row.items()}, points)
+            if "\x00" in "".join(v for v in row.values() if isinstance(v, str)):
+                raise ValueError("a NUL character in the line")
         except ValueError as exc:
             errors.append({"row": n, "message": str(exc)})
             continue

@@ -245,3 +245,22 @@ def test_pilot_columns_by_name_in_any_order_with_a_points_amplitude(round_):
         (418.1, 2.0), (418.2, 2.0)]  # fmt: skip
     with pytest.raises(ValidationFailed, match="missing: measured_on"):
         kit_measurements_replace(kit=kit, text=text.replace("measured_on", "when"))
+
+
+def test_hostile_pilot_csv_is_refused_with_a_reason_and_nothing_stored(round_):
+    _, kit, _, _, devices = round_
+    _points(None, devices[0])
+    good = "MEMS 1,X,5,linear,vertical,2027-01-04,418.1,0.02"
+    for text, reason in (
+        (HEADER + "MEMS 1,X," + "9" * 200_000 + ",linear,vertical,2027-01-04,1,1", "readable CSV"),
+        (HEADER + good.replace("MEMS 1", "MEMS\x001"), "not a measurement point"),
+        (HEADER + good + ",\x00", "more fields than the header"),
+        (HEADER + good.replace("418.1", "1e400"), "sensitivity must be finite"),
+        (HEADER + good.replace("0.02", "-0.02"), "expanded_uncertainty must be finite and > 0"),
+        (HEADER + good.replace("2027-01-04", "2027-02-30"), "measured_on must be a date"),
+    ):
+        with pytest.raises(ValidationFailed) as caught:
+            kit_measurements_replace(kit=kit, text=text)
+        said = caught.value.message + " ".join(e["message"] for e in caught.value.errors)
+        assert reason in said, (text[:60], said)
+    assert not KitMeasurement.objects.exists()
