@@ -10,8 +10,10 @@ application (lab03's, by its manager), so a new user sees the enrolment
 (docs/lifecycles.md §7) from both sides.  An earlier round, ``IMU-2023-DEMO``, is published:
 the same laboratories (with other codes) at a subset of the points, analysed by a run of the
 service and published by its publication job, so every laboratory has a history across rounds
-(docs/domain.md §4.1).  Everything is created idempotently: running the loader twice
-leaves the same rows.
+(docs/domain.md §4.1).  IMU-2024-DEMO's devices travelled in two kits, each in its own loop
+with the linear-bench laboratory as pilot (docs/domain.md §15): one arrival was damaged,
+and the pilot's repeats show Kit B's MEMS 1 drifting (§13).  Everything is created
+idempotently: running the loader twice leaves the same rows.
 """
 
 from __future__ import annotations
@@ -36,7 +38,23 @@ from analysis.core.signals import synthetic
 from analysis.publication import active_publication, publication_start
 from analysis.services import analysis_run_execute, analysis_run_start
 from labs.enrolment import enrolment_apply
-from labs.models import Enrolment, Laboratory, Membership, Participant, Result, Submission
+from labs.kits import (
+    SlotPlan,
+    circulation_set,
+    handover_dispatch,
+    handover_receive,
+    kit_create,
+    kit_measurements_replace,
+)
+from labs.models import (
+    Enrolment,
+    KitSlot,
+    Laboratory,
+    Membership,
+    Participant,
+    Result,
+    Submission,
+)
 from labs.raw_services import Upload, raw_record_upload
 from labs.services import Scope, participants_invite
 from proficiency import protocols
@@ -45,6 +63,7 @@ from proficiency.models import (
     Comparison,
     ComparisonStatus,
     Device,
+    Kit,
     MeasurementPoint,
     SigmaPtMode,
 )
@@ -228,9 +247,84 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
         if name == RAW_DATA_LAB:
             _raw_records(participant)
     summary.call = _call(coordinator, *applicant, curvilinear_lab)
+    _kits(comparison)
     if EARLIER_ROUND:
         summary.previous = _previous(coordinator, labs)
     return summary
+
+
+#: the demo's two kits: (name, serial prefix, drift of the pilot's MEMS 1 repeats per day)
+KITS = (("Kit A", "A", 0.0), ("Kit B", "B", 0.012))
+
+
+def _kits(comparison: Comparison) -> None:
+    """Two kits circulated in two loops in the first half of 2024, the linear-bench
+    laboratory as pilot before, between and after (docs/domain.md §15): every hand-over
+    logged, one arrival damaged, and the pilot's repeats of MEMS 1 on the linear bench
+    showing Kit B drifting (§13). Made once; a demo that has kits keeps them."""
+    if comparison.kits.exists():
+        return
+    participants = list(comparison.participants.select_related("laboratory").order_by("code"))
+    pilot = next(p for p in participants if p.laboratory.name == LINEAR_LAB[0])
+    others = [p for p in participants if p != pilot]
+    devices = list(comparison.devices.order_by("name"))
+    points = list(comparison.measurement_points.filter(
+        device=devices[0], bench="linear").select_related("device"))  # fmt: skip
+    for index, (name, prefix, drift) in enumerate(KITS):
+        serials = {d: f"{prefix}-{i:03d}" for i, d in enumerate(devices, 1)}
+        kit = kit_create(comparison_id=comparison.pk, name=name, serials=serials)
+        day = dt.date(2024, 1, 8)
+        plan = [SlotPlan(pilot, day, day + dt.timedelta(days=4))]
+        loop = others[index::2]
+        for i, p in enumerate(loop):
+            day += dt.timedelta(days=14)
+            plan.append(SlotPlan(p, day, day + dt.timedelta(days=10)))
+            if i % 2 == 1 and i < len(loop) - 1:  # the pilot again, every two laboratories
+                day += dt.timedelta(days=14)
+                plan.append(SlotPlan(pilot, day, day + dt.timedelta(days=4)))
+        day += dt.timedelta(days=14)
+        plan.append(SlotPlan(pilot, day, day + dt.timedelta(days=4)))
+        slots = circulation_set(kit=kit, plan=plan)
+        _circulate(kit, slots, damaged=index == 1)
+        _pilot_repeats(kit, points, [s for s in slots if s.participant_id == pilot.pk], drift)
+
+
+def _circulate(kit: Kit, slots: list[KitSlot], *, damaged: bool) -> None:
+    """Every hand-over of a finished loop: each holder received the kit two days into its
+    slot and sent it on at its end; in a damaged loop the fourth holder found MEMS 2's
+    connector bent."""
+
+    def noon(day: dt.date) -> dt.datetime:
+        return dt.datetime.combine(day, dt.time(12), tzinfo=dt.UTC)
+
+    sent = handover_dispatch(kit=kit, from_slot=None, user=None, carrier_note="courier",
+                             at=noon(slots[0].starts_on - dt.timedelta(days=2)))  # fmt: skip
+    for i, slot in enumerate(slots):
+        broken = damaged and i == 3
+        handover_receive(handover=sent, user=None, condition="damaged" if broken else "good",
+                         note="MEMS 2: connector bent in transport" if broken else "",
+                         at=noon(slot.starts_on))  # fmt: skip
+        sent = handover_dispatch(kit=kit, from_slot=slot, user=None, carrier_note="courier",
+                                 at=noon(slot.ends_on))  # fmt: skip
+    handover_receive(handover=sent, user=None, condition="good",
+                     at=noon(slots[-1].ends_on + dt.timedelta(days=2)))  # fmt: skip
+
+
+def _pilot_repeats(kit: Kit, points: list[MeasurementPoint], slots: list[KitSlot],
+                   drift: float) -> None:  # fmt: skip
+    """The pilot's measurement of each point in each of its slots: the nominal value with
+    a small scatter, plus ``drift`` per day since the first slot (Kit B's MEMS 1 ages)."""
+    rng = np.random.default_rng(zlib.crc32(kit.name.encode()))
+    first = slots[0].starts_on
+    lines = ["device,axis,frequency_hz,bench,direction,amplitude_m_s2,measured_on,"
+             "sensitivity,expanded_uncertainty"]  # fmt: skip
+    for p in points:
+        amplitude = "" if p.amplitude_m_s2 is None else repr(p.amplitude_m_s2)
+        for slot in slots:
+            value = NOMINAL + 1.5 + drift * (slot.starts_on - first).days + rng.normal(0, 0.03)
+            lines.append(f"{p.device.name},{p.axis},{p.frequency_hz!r},{p.bench},{p.direction},"
+                         f"{amplitude},{slot.starts_on},{value:.4f},0.08")  # fmt: skip
+    kit_measurements_replace(kit=kit, text="\n".join(lines))
 
 
 def _previous(coordinator: Any, labs: list[tuple[Laboratory, Scope | None, bool]]) -> Comparison:

@@ -1,6 +1,7 @@
 """The demo loader: idempotent, and its two bench labs reproduce Table 1 exactly."""
 
 import csv
+import datetime as dt
 from io import StringIO
 from pathlib import Path
 
@@ -229,3 +230,25 @@ def test_the_previous_round_is_published_by_its_job_and_makes_a_history(
     assert (
         counts()["Result"] == 1155 and Publication.objects.filter(comparison=previous).count() == 1
     )
+
+
+def test_the_demo_round_circulated_two_kits_and_one_drifts():
+    from labs.kits import circulation_status, kit_drift
+    from labs.models import Handover
+
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    call_command("load_demo", stdout=StringIO())  # the kits are made once
+    demo = Comparison.objects.get(code=DEMO_CODE)
+    kits = list(demo.kits.order_by("name"))
+    assert [k.name for k in kits] == ["Kit A", "Kit B"]
+    for kit in kits:
+        slots = circulation_status(kit, today=dt.date(2024, 12, 1))
+        # the pilot first, between and last; every hand-over received, none late or overdue
+        assert slots[0].slot.participant == slots[-1].slot.participant
+        assert Handover.objects.filter(kit=kit, received_at__isnull=True).count() == 0
+        assert not any(s.late or s.overdue for s in slots)
+    assert [s.damaged for s in circulation_status(kits[1])].count(True) == 1
+    stable, drifting = (kit_drift(k)[0] for k in kits)
+    assert {r.model for r in stable} == {"constant"}
+    assert {r.model for r in drifting} == {"linear"}
+    assert all(abs(r.slope_per_day - 0.012) < 0.002 for r in drifting)
