@@ -153,20 +153,40 @@ def lab_history(
     ``run``: its round counts too, with this run, published or not: a participant report
     is rendered from its run before its round is published (the final reports are rendered
     first), so ``lab_history(lab, until=round_date(c), run=run)`` is its history up to it."""
-    participations = _participations(laboratory, until, within, run)
-    runs = published_runs([p.comparison_id for p in participations])
+    found = lab_histories([laboratory.pk], until=until, within=within, run=run)
+    return LabHistory(laboratory.name, *found.get(laboratory.pk, ([], [])))
+
+
+def lab_histories(
+    laboratory_ids: Iterable[int],
+    *,
+    until: dt.datetime | None = None,
+    within: QuerySet[Comparison] | None = None,
+    run: AnalysisRun | None = None,
+) -> dict[int, tuple[list[RoundSummary], list[PointHistory]]]:
+    """:func:`lab_history` of several laboratories at once, in the same fixed number of
+    queries (a batch of participant reports): laboratory id → its rounds and points, each
+    laboratory's built from its own participations only (missing: none)."""
+    participations = _participations(list(laboratory_ids), until, within, run)
+    runs = published_runs({p.comparison_id for p in participations})
     if run is not None:
         runs[run.comparison_id] = run.pk
     participations = [p for p in participations if p.comparison_id in runs]
     rows = _score_rows(runs.values(), [p.pk for p in participations])
-    by_participant = {p.pk: p for p in participations}
-    entries = [(_key(r), _entry(r, by_participant[r[_PARTICIPANT]])) for r in rows]
-    rounds = [_round(p, runs[p.comparison_id], rows) for p in participations]
-    return LabHistory(laboratory.name, rounds, _points(entries))
+    rows_of: dict[int, list[tuple[Any, ...]]] = {}
+    for r in rows:
+        rows_of.setdefault(r[_PARTICIPANT], []).append(r)
+    rounds: dict[int, list[RoundSummary]] = {}
+    entries: dict[int, list[tuple[ComparableKey, Entry]]] = {}
+    for p in participations:
+        mine = rows_of.get(p.pk, [])
+        rounds.setdefault(p.laboratory_id, []).append(_round(p, runs[p.comparison_id], mine))
+        entries.setdefault(p.laboratory_id, []).extend((_key(r), _entry(r, p)) for r in mine)
+    return {lab: (found, _points(entries[lab])) for lab, found in rounds.items()}
 
 
 def _participations(
-    laboratory: Laboratory,
+    laboratory_ids: list[int],
     until: dt.datetime | None,
     within: QuerySet[Comparison] | None,
     run: AnalysisRun | None,
@@ -176,7 +196,9 @@ def _participations(
         rounds &= Q(comparison__in=within)
     if run is not None:
         rounds |= Q(comparison_id=run.comparison_id)
-    found = Participant.objects.filter(rounds, laboratory=laboratory).select_related("comparison")
+    found = Participant.objects.filter(rounds, laboratory_id__in=laboratory_ids).select_related(
+        "comparison"
+    )
     kept = [p for p in found if until is None or round_date(p.comparison) <= until]
     return sorted(kept, key=lambda p: (round_date(p.comparison), p.comparison.code))
 

@@ -16,6 +16,7 @@ from django.contrib.auth.models import User
 
 import proficiency
 from analysis import performance
+from analysis.history import PointHistory, RoundSummary, lab_histories, round_date
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score, method_label
 from analysis.reports.consistency import consistency_summary
 from analysis.reports.data import (
@@ -24,11 +25,14 @@ from analysis.reports.data import (
     ConsistencySummary,
     Counts,
     DeviceInfo,
+    HistoryPoint,
+    HistoryRound,
     LabSummary,
     MatrixData,
     PerformanceLine,
     PointInfo,
     ReportData,
+    ReportHistory,
     ResultListing,
     ResultRow,
     RoundStats,
@@ -365,6 +369,7 @@ def report_data(
     common: ComparisonCommon | None = None,
     context: RunContext | None = None,
     status: str | None = None,
+    history: ReportHistory | None = None,
 ) -> ReportData:
     """The data of the summary report (``participant`` None) or of one participant's.
 
@@ -375,7 +380,8 @@ def report_data(
     read once; ``status`` (preliminary / final), the issuing code's, read under its lock,
     else :func:`report_status` of the comparison.  The summary of a large round lists
     every result from columns (:func:`result_listing`), not from row objects: its
-    ``results`` and ``scores`` are empty."""
+    ``results`` and ``scores`` are empty.  ``history``: the participant's, read for a
+    batch by :func:`report_histories` (else read here)."""
     comparison = run.comparison
     context = context or run_context(run)
     common = common or comparison_common(comparison)
@@ -434,7 +440,44 @@ def report_data(
         consistency=context.consistency,
         performance=_own_summary(participant.code, context.points, scores) if participant else None,
         performances=() if participant else _summaries(run),
+        history=_history(run, participant, history),
     )
+
+
+def _history(
+    run: AnalysisRun, participant: Participant | None, given: ReportHistory | None
+) -> ReportHistory | None:
+    if participant is None or given is not None:
+        return given
+    return report_histories(run, [participant])[participant.pk]
+
+
+def report_histories(
+    run: AnalysisRun, participants: Sequence[Participant]
+) -> dict[int, ReportHistory]:
+    """Participant id → its laboratory's history up to this round, with this run
+    (``analysis.history.lab_histories``: a fixed number of queries for all of them); only
+    each laboratory's own rounds and codes."""
+    found = lab_histories({p.laboratory_id for p in participants},
+                          until=round_date(run.comparison), run=run)  # fmt: skip
+    return {p.pk: _report_history(*found.get(p.laboratory_id, ([], []))) for p in participants}
+
+
+def _report_history(rounds: list[RoundSummary], points: list[PointHistory]) -> ReportHistory:
+    found = tuple(
+        HistoryRound(r.code, r.date, r.own_code, r.en_satisfactory, r.en_scored,
+                     r.z_satisfactory, r.z_scored)
+        for r in rounds
+    )  # fmt: skip
+    rows = []
+    for p in points:
+        c = p.combined
+        rows.append(
+            HistoryPoint(p.key.label, p.n_rounds, c.rsz, c.rsz_flag, c.rlp, c.rlp_flag)
+            if c is not None
+            else HistoryPoint(p.key.label, p.n_rounds, None, "", None, "")
+        )
+    return ReportHistory(found, tuple(rows))
 
 
 def _counts(t: performance.Tally) -> Counts:

@@ -485,3 +485,52 @@ def overview_frame(
     title: str, ylabel: str,
 ) -> OverviewFrame:  # fmt: skip
     return OverviewFrame(groups, n, limits=limits, top=top, title=title, ylabel=ylabel)
+
+
+class YoudenChart(Shared):
+    """Every lab's result at one point against its result at another (ISO 13528:2022
+    10.4), the assigned values' cross lines, the 45° line through the centre and the 95 %
+    ellipse (``ring``: its vertices; empty: none); the reader's own point is an overlay."""
+
+    def __init__(
+        self, labels: tuple[str, ...], x: tuple[float, ...], y: tuple[float, ...], *,
+        assigned: tuple[float, float], centre: tuple[float, float] | None,
+        ring: tuple[tuple[float, float], ...], x_label: str, y_label: str, title: str,
+    ) -> None:  # fmt: skip
+        self.index = {label: i for i, label in enumerate(labels)}
+        self.x, self.y = x, y
+        with matplotlib.rc_context(RC):
+            self.fig, self.ax = _figure(6.4, 3.6, left=0.11, bottom=0.14, top=0.91)
+            ax = self.ax
+            if ring:
+                closed = np.array([*ring, ring[0]], dtype=float)
+                ax.fill(closed[:, 0], closed[:, 1], color=BAND, alpha=0.35, lw=0)
+                ax.plot(closed[:, 0], closed[:, 1], color=LAB, lw=0.8, label="95 % ellipse")
+            if centre is not None:
+                ax.axline(centre, slope=1.0, color="#6c757d", lw=0.8, ls=":", label="45° line")
+            ax.axvline(assigned[0], color=LAB, lw=1, ls="--", label="assigned values")
+            ax.axhline(assigned[1], color=LAB, lw=1, ls="--")
+            ax.scatter(x, y, s=16 if len(labels) <= LABELLED else 4, color=LAB, zorder=3)
+            ax.ticklabel_format(useOffset=False)
+            ax.set_xlabel(x_label)
+            ax.set_ylabel(y_label)
+            ax.set_title(title)
+            ax.legend(loc="upper left", fontsize=7, frameon=False)
+        self._freeze()
+
+    def overlay(self, highlight: str | None) -> Overlay | None:
+        i = self.index.get(highlight) if highlight else None
+        if i is None:
+            return None
+        return Overlay(dots=(self._px(self.x[i], self.y[i]),), dot_radius=3.0 * PX)
+
+
+@functools.lru_cache(maxsize=16)
+def youden_chart(
+    labels: tuple[str, ...], x: tuple[float, ...], y: tuple[float, ...], *,
+    assigned: tuple[float, float], centre: tuple[float, float] | None,
+    ring: tuple[tuple[float, float], ...], x_label: str, y_label: str, title: str,
+) -> YoudenChart:  # fmt: skip
+    """The (cached) Youden plot of one pair of points: every report of a run shares it."""
+    return YoudenChart(labels, x, y, assigned=assigned, centre=centre, ring=ring,
+                       x_label=x_label, y_label=y_label, title=title)  # fmt: skip

@@ -285,6 +285,41 @@ class RoundStats:
 
 
 @dataclass(frozen=True)
+class HistoryRound:
+    """One round of the participant's history (``analysis.history.RoundSummary``): its code
+    and date, the participant's code there, its scored En and z and the satisfactory ones."""
+
+    code: str
+    date: datetime
+    own_code: str
+    en_satisfactory: int
+    en_scored: int
+    z_satisfactory: int
+    z_scored: int
+
+
+@dataclass(frozen=True)
+class HistoryPoint:
+    """A comparable point (docs/domain.md §4.1): its label, the rounds it was measured in
+    and RSZ / RLP of its z (None: no z in any round)."""
+
+    label: str
+    n_rounds: int
+    rsz: float | None
+    rsz_flag: str
+    rlp: float | None
+    rlp_flag: str
+
+
+@dataclass(frozen=True)
+class ReportHistory:
+    """The participant's own history up to the report's round, never another laboratory's."""
+
+    rounds: tuple[HistoryRound, ...]
+    points: tuple[HistoryPoint, ...]
+
+
+@dataclass(frozen=True)
 class ReportData:
     """Everything printed in one report; the renderer adds nothing but layout."""
 
@@ -332,6 +367,8 @@ class ReportData:
     # participant's, without their largest scores (the summary report).
     performance: LabSummary | None = None
     performances: tuple[LabSummary, ...] = ()
+    # The participant's history over the rounds up to this one (a participant report).
+    history: ReportHistory | None = None
     # The provider's furniture (docs/domain.md §9, the PT_PROVIDER_* settings), printed on
     # the title page; the logo is the path of a PNG or JPEG file ("" or missing: no logo).
     provider_address: str = ""

@@ -16,14 +16,16 @@ from reportlab.lib.colors import HexColor
 from reportlab.lib.rl_accel import asciiBase85Encode
 from reportlab.lib.units import mm
 from reportlab.pdfbase.pdfdoc import PDFImageXObject
-from reportlab.platypus import Flowable, Paragraph
+from reportlab.platypus import Flowable, KeepTogether, Paragraph
 
-from analysis.core.graphs import sorted_scores
+from analysis.core.graphs import sorted_scores, youden_data
+from analysis.core.groups import CoreInputError
 from analysis.core.scores import NEGLIGIBLE_FRACTION
 from analysis.reports import charts
 from analysis.reports.charts import Overlay, Raster
 from analysis.reports.data import AssignedRow, ReportData, RoundStats, ScoreRow
 from analysis.reports.styles import STYLES
+from analysis.standard_charts import CAPTIONS
 
 WIDTH = 170 * mm
 
@@ -111,6 +113,7 @@ def figures(data: ReportData) -> list[Flowable]:
     out += _point_charts(data)
     out += _sorted_charts(data)
     out += _en_chart(data)
+    out += _youden(data)
     out += _frequency_charts(data)
     if not out:
         out.append(Paragraph("No graphs: the run has no results.", STYLES["body"]))
@@ -320,3 +323,82 @@ def _frequency_charts(data: ReportData) -> list[Flowable]:
         title = f"{device}: median sensitivity against frequency"
         out.append(RasterImage(charts.frequency_chart(series, title=title, unit=unit)))
     return out
+
+
+YOUDEN_FEW = 3  # an ellipse needs at least three participants with both results
+
+
+def _pair_rank(data: ReportData, a: int, b: int) -> int | None:
+    """How worth drawing the pair of points ``a``, ``b`` is, as ``analysis.graph_data.
+    point_pairs`` ranks the web's pairs: 0 the same device, axis and frequency on the two
+    benches, 1 in two directions, 2 two devices at one axis, frequency, bench and
+    direction; None: not a pair."""
+    p, q = data.points[a], data.points[b]
+    if (p.device, p.axis, p.frequency_hz) == (q.device, q.axis, q.frequency_hz):
+        return int(p.bench == q.bench)
+    if (p.axis, p.frequency_hz, p.bench, p.direction) == (q.axis, q.frequency_hz, q.bench,
+                                                          q.direction):  # fmt: skip
+        return 2
+    return None
+
+
+def youden_pair(data: ReportData) -> tuple[int, int] | None:
+    """The pair of the reader's points for its Youden plot: the best ranked, then the first
+    in the points' order, among those where at least three participants have both results."""
+    mine = sorted({r.point for r in data.results if r.lab == data.own_code})
+    values = data.round.point_values
+    best: tuple[int, int, int] | None = None
+    for i, a in enumerate(mine):
+        for b in mine[i + 1 :]:
+            rank = _pair_rank(data, a, b)
+            if rank is None or (best is not None and (rank, a, b) >= best):
+                continue
+            at_a, at_b = values.get(a), values.get(b)
+            if at_a and at_b and len(set(at_a.labs) & set(at_b.labs)) >= YOUDEN_FEW:
+                best = (rank, a, b)
+    return None if best is None else (best[1], best[2])
+
+
+def _ellipse(
+    x: tuple[float, ...], y: tuple[float, ...], assigned: tuple[float, float]
+) -> tuple[tuple[float, float] | None, tuple[tuple[float, float], ...]]:
+    """Centre and vertices of the 95 % ellipse (robust; classical where MADe is 0), as
+    ``analysis.standard_charts`` draws it; (None, ()) where neither can be drawn."""
+    for method in ("robust", "classical"):
+        try:
+            found = youden_data(x, y, *assigned, method=method)
+        except CoreInputError:
+            continue
+        cx, cy = found.ellipse.centre
+        ring = tuple((float(u), float(v)) for u, v in found.ellipse.vertices)
+        return (float(cx), float(cy)), ring
+    return None, ()
+
+
+def _youden(data: ReportData) -> list[Flowable]:
+    """The reader's Youden plot of :func:`youden_pair`: shared by every report of the run
+    with the same pair, the reader's point an overlay."""
+    pair = youden_pair(data) if data.own_code else None
+    assigned = {a.point: a.value for a in data.assigned}
+    if pair is None or not all(i in assigned for i in pair):
+        return []
+    a, b = pair
+    found = _round_charts(data)
+    key = ("youden", a, b)
+    chart = found.get(key)
+    if chart is None:
+        at_a, at_b = data.round.point_values[a], data.round.point_values[b]
+        y_of = dict(zip(at_b.labs, at_b.values, strict=True))
+        both = [(lab, v) for lab, v in zip(at_a.labs, at_a.values, strict=True) if lab in y_of]
+        labels = tuple(lab for lab, _ in both)
+        x, y = tuple(v for _, v in both), tuple(y_of[lab] for lab in labels)
+        centre, ring = _ellipse(x, y, (assigned[a], assigned[b]))
+        pa, pb = data.points[a], data.points[b]
+        chart = found[key] = charts.youden_chart(
+            labels, x, y, assigned=(assigned[a], assigned[b]), centre=centre, ring=ring,
+            x_label=f"{pa.full_label} ({pa.unit})", y_label=f"{pb.full_label} ({pb.unit})",
+            title="Youden plot",
+        )  # fmt: skip
+    assert isinstance(chart, charts.YoudenChart)
+    text = f"{CAPTIONS['youden']} Your result ({data.own_code}) is the pink dot."
+    return [KeepTogether([RasterImage(chart.raster, chart.overlay(data.own_code)), caption(text)])]

@@ -171,6 +171,7 @@ def story(data: ReportData) -> list[Flowable]:
     flow: list[Flowable] = sections.title_page(data)
     if data.is_participant:
         flow += sections.own_performance(data)
+        flow += sections.own_history(data)
     else:
         flow += sections.participants_performance(data)
     flow += [PageBreak()]

@@ -23,6 +23,7 @@ from analysis.reports import figures
 from analysis.reports.data import (
     ConsistencyRow,
     Counts,
+    HistoryRound,
     LabSummary,
     ReportData,
     ResultListing,
@@ -270,6 +271,52 @@ def _worst_table(data: ReportData, mine: LabSummary) -> list[Flowable]:
         return []
     widths = [26 * mm, 86 * mm, 24 * mm, 26 * mm]
     return [Spacer(1, 2 * mm), table(rows, widths, (), bad)]
+
+
+HISTORY_NOTE = (
+    "Your code is drawn anew in every round, so it differs between rounds. Points of "
+    "different rounds are comparable when they have the same device model, bench, "
+    "direction and axis and the same frequency and excitation amplitude (to a relative "
+    "10⁻⁶); RSZ = Σz/√n and RLP = √(Σz²/n) combine the z (or z′) of the n rounds in which "
+    "a comparable point has one."
+)
+
+
+def _share(satisfactory: int, scored: int) -> str:
+    return "–" if not scored else f"{satisfactory}/{scored} ({100 * satisfactory / scored:.0f} %)"
+
+
+def _round_row(r: HistoryRound) -> list[str]:
+    en, z = _share(r.en_satisfactory, r.en_scored), _share(r.z_satisfactory, r.z_scored)
+    return [r.code, r.date.strftime("%Y-%m-%d"), r.own_code, str(r.en_scored), en, z]
+
+
+def own_history(data: ReportData) -> list[Flowable]:
+    """The participant's results over the rounds up to this one (docs/domain.md §4.1): a
+    row per round, a row per comparable point with RSZ and RLP; only its own codes."""
+    found = data.history
+    if found is None:
+        return []
+    flow: list[Flowable] = [para("Your results over the rounds", "h1")]
+    if len(found.rounds) <= 1:
+        return [*flow, para("This is the only round of your laboratory so far: there is no "
+                            "history across rounds yet.")]  # fmt: skip
+    head = ["Round", "Date", "Your code", "n", "Satisfactory En", "Satisfactory z"]
+    rows = [head, *(_round_row(r) for r in found.rounds)]
+    widths = [34 * mm, 22 * mm, 20 * mm, 12 * mm, 36 * mm, 36 * mm]
+    flow += [para(f"Your laboratory took part in {len(found.rounds)} rounds up to this one."),
+             table(rows, widths, ())]  # fmt: skip
+    points = [["Comparable point", "Rounds", "RSZ", "RLP"]]
+    for p in found.points:
+        points.append([p.label, str(p.n_rounds), _combined(p.rsz, p.rsz_flag),
+                       _combined(p.rlp, p.rlp_flag)])  # fmt: skip
+    flow += [Spacer(1, 2 * mm), table(points, [88 * mm, 16 * mm, 28 * mm, 28 * mm], ()),
+             para(HISTORY_NOTE, "small")]  # fmt: skip
+    return flow
+
+
+def _combined(value: float | None, flag: str) -> str:
+    return "–" if value is None else f"{numbers.fixed(value, 2)} {flag}"
 
 
 def participants_performance(data: ReportData) -> list[Flowable]:

@@ -42,10 +42,11 @@ from analysis.reports.assemble import (
     comparison_common,
     participant_rows,
     report_data,
+    report_histories,
     report_status,
     run_context,
 )
-from analysis.reports.data import ResultRow, ScoreRow
+from analysis.reports.data import ReportHistory, ResultRow, ScoreRow
 from analysis.reports.figures import point_charts_build
 from analysis.reports.render import render_report
 from analysis.reports.tasks import (
@@ -318,9 +319,12 @@ def report_issue_batch(*, run_id: int, participant_ids: Sequence[int]) -> list[i
         context = run_context(run)
         own = participant_rows(run, context, todo) if context.rows is None else {}
         common = comparison_common(comparison)
-        _round_charts_build(run, participants[todo[0]], own, common, context)
+        histories = report_histories(run, list(participants.values()))
+        _round_charts_build(run, participants[todo[0]], own, common, context, histories)
         for pk in todo:
-            report = _issue_current(run, participants[pk], own.get(pk), common, context)
+            report = _issue_current(
+                run, participants[pk], own.get(pk), common, context, histories[pk]
+            )
             done[pk] = report.pk
     return [done[pk] for pk in ids]
 
@@ -331,6 +335,7 @@ def _round_charts_build(
     own: dict[int, tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]]],
     common: ComparisonCommon,
     context: RunContext,
+    histories: dict[int, ReportHistory],
 ) -> None:
     """Build every point chart of a large round once per process (a no-op afterwards),
     outside the reports' transactions: with at least as many participants as points,
@@ -340,7 +345,7 @@ def _round_charts_build(
         return
     data = report_data(
         run=run, participant=participant, own=own.get(participant.pk), common=common,
-        context=context,
+        context=context, history=histories[participant.pk],
     )  # fmt: skip
     point_charts_build(data)
 
@@ -352,6 +357,7 @@ def _issue_current(
     own: tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]] | None,
     common: ComparisonCommon,
     context: RunContext,
+    own_history: ReportHistory,
 ) -> Report:
     """The current participant report of ``run`` for the comparison's status (read under
     the locks: :func:`_hold_status`): found under the participant's row lock, else
@@ -376,7 +382,7 @@ def _issue_current(
     edition = report_edition([r for _, r, *_ in history], run)
     data = report_data(
         run=run, participant=participant, edition=edition, own=own, common=common,
-        context=context, status=status,
+        context=context, status=status, history=own_history,
     )  # fmt: skip
     version = max((v for _, _, v, *_ in history), default=0) + 1
     pdf = render_report(data)
@@ -680,11 +686,13 @@ def final_reports_render(
         for batch in _in_batches(ids, _batch_size(None)):
             participants = Participant.objects.in_bulk(batch)
             own = participant_rows(run, context, batch) if context.rows is None else {}
-            _round_charts_build(run, participants[batch[0]], own, common, context)
+            histories = report_histories(run, list(participants.values()))
+            _round_charts_build(run, participants[batch[0]], own, common, context, histories)
             for pk in batch:
                 data = report_data(
                     run=run, participant=participants[pk], edition=editions[pk],
                     own=own.get(pk), common=common, context=context, status=Report.Status.FINAL,
+                    history=histories[pk],
                 )  # fmt: skip
                 staged.append(_stage(run, Report.Kind.PARTICIPANT, participants[pk],
                                      render_report(data)))  # fmt: skip

@@ -12,6 +12,7 @@ from PIL import Image
 
 from analysis.performance import lab_performance, performance
 from analysis.reports.assemble import report_data
+from analysis.reports.figures import youden_pair
 from analysis.reports.render import render_report
 from labs.models import Participant
 from tests.analysis.reports.conftest import page_count, pdftotext
@@ -73,12 +74,14 @@ def test_participant_report_opens_with_its_performance_summary(varied, tmp_path)
     # the 81 bullets of the old page are gone
     assert "Your result for" not in words(pdftotext(pdf, tmp_path))
     # the graphs: its En and z over its points, per chart point the results and the sorted
-    # En and z (z at points with a σ_pt), the largest |En| per lab, a frequency chart per device
+    # En and z (z at points with a σ_pt), the largest |En| per lab, a Youden plot (a pair of
+    # its points where three participants have both), a frequency chart per device
     data = report_data(run=run, participant=participant)
     with_z = [p for p in data.chart_points
               if not np.isnan(data.round.point_scores[p].z).all()]  # fmt: skip
     devices = {p.device for p in data.points}
-    expected = 2 + 2 * len(data.chart_points) + len(with_z) + 1 + len(devices)
+    youden = int(youden_pair(data) is not None)
+    expected = 2 + 2 * len(data.chart_points) + len(with_z) + 1 + youden + len(devices)
     assert len(data.chart_points) == 4 and images_on(pdf, tmp_path) == expected
 
 

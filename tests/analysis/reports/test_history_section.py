@@ -1,0 +1,84 @@
+"""The participant report's "Your results over the rounds" (docs/domain.md §9, §4.1): the
+rounds and comparable points of ``analysis.history.lab_history`` for the reader's own
+laboratory, never another laboratory's name or code; one sentence when the round is its
+first.  Read back with poppler's pdftotext -layout."""
+
+from io import StringIO
+
+import pytest
+from django.core.management import call_command
+
+from analysis.history import lab_history, round_date
+from analysis.reports.assemble import report_data
+from analysis.reports.render import render_report
+from analysis.services import analysis_run_execute, analysis_run_start
+from coordination.demo import LINEAR_LAB, PREVIOUS_CODE
+from labs.models import Participant
+from proficiency.models import Comparison, ComparisonStatus
+from tests.analysis.reports.conftest import CODE, pdftotext
+
+pytestmark = pytest.mark.django_db
+
+
+def words(text: str) -> str:
+    return " ".join(text.split())
+
+
+def share(satisfactory: int, scored: int) -> str:
+    return f"{satisfactory}/{scored} ({round(100 * satisfactory / scored)} %)"
+
+
+@pytest.fixture
+def two_rounds(demo_earlier_round):
+    """The demo with IMU-2023-DEMO published (its latest run, no publication job) and
+    IMU-2024-DEMO analysed."""
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    Comparison.objects.filter(code=PREVIOUS_CODE).update(status=ComparisonStatus.PUBLISHED)
+    demo = Comparison.objects.get(code=CODE)
+    run = analysis_run_start(comparison=demo, user=None)
+    assert analysis_run_execute(run_id=run.pk) == "succeeded"
+    run.refresh_from_db()
+    return run
+
+
+def _section(pdf: bytes, tmp_path) -> str:
+    text = words(pdftotext(pdf, tmp_path))
+    start = text.index("Your results over the rounds")
+    return text[start : text.index("1 Confidentiality", start)]
+
+
+def test_history_lists_the_labs_rounds_codes_and_shares(two_rounds, tmp_path):
+    run = two_rounds
+    me = Participant.objects.select_related("laboratory").get(
+        comparison=run.comparison, laboratory__name=LINEAR_LAB[0]
+    )
+    history = lab_history(me.laboratory, until=round_date(run.comparison), run=run)
+    assert [r.code for r in history.rounds] == [PREVIOUS_CODE, CODE]
+    section = _section(render_report(report_data(run=run, participant=me)), tmp_path)
+    for r in history.rounds:
+        row = (
+            f"{r.code} {r.date:%Y-%m-%d} {r.own_code} {r.en_scored} "
+            f"{share(r.en_satisfactory, r.en_scored)} {share(r.z_satisfactory, r.z_scored)}"
+        )
+        assert row in section, row
+    assert "Your laboratory took part in 2 rounds up to this one." in section
+    for p in history.points:
+        assert p.combined is not None
+        assert f"{p.key.label} {p.n_rounds} {p.combined.rsz:.2f} {p.combined.rsz_flag}" in section
+    assert "Your code is drawn anew in every round" in section
+    others = Participant.objects.exclude(laboratory=me.laboratory).select_related("laboratory")
+    mine = {r.own_code for r in history.rounds}
+    for other in others:
+        assert other.laboratory.name not in section
+        if other.code not in mine:
+            assert f" {other.code} " not in section, other.code
+
+
+def test_a_first_round_says_so_in_one_sentence(demo, tmp_path):
+    run = analysis_run_start(comparison=demo, user=None)
+    assert analysis_run_execute(run_id=run.pk) == "succeeded"
+    run.refresh_from_db()
+    me = Participant.objects.filter(comparison=demo).order_by("code").first()
+    section = _section(render_report(report_data(run=run, participant=me)), tmp_path)
+    assert "This is the only round of your laboratory so far" in section
+    assert "Comparable point" not in section
