@@ -28,7 +28,7 @@ PLAN_HELP = "One line per slot, in loop order: participant code, start date, end
 
 
 class KitForm(forms.Form):
-    name = forms.CharField(max_length=40, label="Name", initial="Kit A")
+    name = forms.CharField(max_length=40, label="Name")
 
     def __init__(self, *args: object, devices: list[Device], **kwargs: object) -> None:
         super().__init__(*args, **kwargs)  # type: ignore[arg-type]
@@ -84,6 +84,12 @@ def _refused(request: AuthenticatedHttpRequest, comparison: Comparison, kit: Kit
     return _page(request, comparison, status=exc.status_code, plan_errors={kit.pk: lines})
 
 
+def _next_name(rows: list[dict]) -> str:
+    """``Kit A``, ``Kit B``, … : the first such name the round does not use yet."""
+    taken = {row["kit"].name for row in rows}
+    return next((n for n in (f"Kit {chr(65 + i)}" for i in range(26)) if n not in taken), "")
+
+
 def _kit(comparison: Comparison, pk: int) -> Kit:
     kit = Kit.objects.filter(comparison=comparison, pk=pk).first()
     if kit is None:
@@ -109,7 +115,8 @@ def _page(request: AuthenticatedHttpRequest, comparison: Comparison, *, status: 
         })  # fmt: skip
     context = {
         "comparison": comparison, "kits": rows, "plan_help": PLAN_HELP,
-        "kit_form": kit_form or KitForm(devices=devices), "plan_errors": plan_errors or {},
+        "kit_form": kit_form or KitForm(devices=devices, initial={"name": _next_name(rows)}),
+        "plan_errors": plan_errors or {},
         "conditions": Handover.Condition.choices,
         "measurement_header": ",".join(kits.MEASUREMENT_COLUMNS),
     }  # fmt: skip

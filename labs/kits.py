@@ -356,6 +356,7 @@ class DriftRow:
     last: dt.date
     model: str
     value: float
+    u_value: float
     slope_per_day: float
     u_slope: float
     p_value: float
@@ -400,7 +401,8 @@ def kit_drift(kit: Kit) -> tuple[list[DriftRow], list[str]]:
         out.append(DriftRow(
             label=str(series[0].measurement_point), n=int(fit.n[g]),
             first=series[0].measured_on, last=series[-1].measured_on, model=fit.model[g],
-            value=float(fit.value[g]), slope_per_day=float(fit.slope[g]),
+            value=float(fit.value[g]), u_value=float(fit.u_value[g]),
+            slope_per_day=float(fit.slope[g]),
             u_slope=float(fit.u_slope[g]), p_value=float(fit.p_value[g]),
             u_stab_max=float(u_stab.max()),
         ))  # fmt: skip
