@@ -108,9 +108,9 @@ def _page(request: AuthenticatedHttpRequest, comparison: Comparison, *, status: 
             "kit": kit, "slots": status_rows,
             "plan_text": "\n".join(f"{s.slot.participant.code}, {s.slot.starts_on}, "
                                    f"{s.slot.ends_on}" for s in status_rows),
-            "circulating": Handover.objects.filter(kit=kit).exists(),
-            "returned": Handover.objects.filter(kit=kit, to_slot__isnull=True,
-                                                from_slot__isnull=False).first(),
+            # the provider's dispatch arrives at the first slot, the last slot's goes back
+            "circulating": bool(status_rows) and status_rows[0].arrival is not None,
+            "returned": status_rows[-1].departure if status_rows else None,
             "drift": kits.kit_drift(kit),
         })  # fmt: skip
     context = {

@@ -13,13 +13,14 @@ import csv
 import datetime as dt
 import io
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from django.contrib.auth.models import User
 from django.core.files.base import File
 from django.db import IntegrityError, transaction
+from django.db.models import Q
 from django.utils import timezone
 
 from analysis.core.drift import DriftFit, drift_fit
@@ -206,6 +207,18 @@ class OwnSlot:
                 and self.departure is None)  # fmt: skip
 
 
+def _by_slot(moves: Iterable[Handover]) -> tuple[dict[int, Handover], dict[int, Handover]]:
+    """Hand-overs by the slot they arrive at and by the slot they leave from."""
+    arrival: dict[int, Handover] = {}
+    departure: dict[int, Handover] = {}
+    for h in moves:
+        if h.to_slot_id:
+            arrival[h.to_slot_id] = h
+        if h.from_slot_id:
+            departure[h.from_slot_id] = h
+    return arrival, departure
+
+
 def own_circulation(participant: Participant) -> list[OwnSlot]:
     """The participant's own slots, in date order (three queries whatever their number)."""
     slots = list(KitSlot.objects.filter(participant=participant).select_related("kit")
@@ -214,11 +227,9 @@ def own_circulation(participant: Participant) -> list[OwnSlot]:
     items: dict[int, list[KitItem]] = {}
     for item in KitItem.objects.filter(kit_id__in=kit_ids).select_related("device"):
         items.setdefault(item.kit_id, []).append(item)
-    moves = Handover.objects.filter(kit_id__in=kit_ids).filter(
-        to_slot__in=slots
-    ) | Handover.objects.filter(from_slot__in=slots)
-    arrival = {h.to_slot_id: h for h in moves if h.to_slot_id}
-    departure = {h.from_slot_id: h for h in moves if h.from_slot_id}
+    arrival, departure = _by_slot(
+        Handover.objects.filter(Q(to_slot__in=slots) | Q(from_slot__in=slots))
+    )
     return [OwnSlot(s, items.get(s.kit_id, []), arrival.get(s.pk), departure.get(s.pk))
             for s in slots]  # fmt: skip
 
@@ -240,9 +251,7 @@ def circulation_status(kit: Kit, today: dt.date | None = None) -> list[SlotStatu
     day = today or timezone.localdate()
     slots = list(KitSlot.objects.filter(kit=kit).select_related("participant__laboratory")
                  .order_by("position"))  # fmt: skip
-    moves = list(Handover.objects.filter(kit=kit))
-    arrival = {h.to_slot_id: h for h in moves if h.to_slot_id}
-    departure = {h.from_slot_id: h for h in moves if h.from_slot_id}
+    arrival, departure = _by_slot(Handover.objects.filter(kit=kit))
     out = []
     for s in slots:
         a, d = arrival.get(s.pk), departure.get(s.pk)
