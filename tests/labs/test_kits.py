@@ -255,6 +255,7 @@ def test_hostile_pilot_csv_is_refused_with_a_reason_and_nothing_stored(round_):
         (HEADER + "MEMS 1,X," + "9" * 200_000 + ",linear,vertical,2027-01-04,1,1", "readable CSV"),
         (HEADER + good.replace("MEMS 1", "MEMS\x001"), "not a measurement point"),
         (HEADER + good + ",\x00", "more fields than the header"),
+        (HEADER + good + "," * 1_000_000, "more fields than the header"),  # a million cells
         (HEADER + good.replace("418.1", "1e400"), "sensitivity must be finite"),
         (HEADER + good.replace("0.02", "-0.02"), "expanded_uncertainty must be finite and > 0"),
         (HEADER + good.replace("2027-01-04", "2027-02-30"), "measured_on must be a date"),
