@@ -89,7 +89,7 @@ def test_a_participant_reads_how_it_did_its_graphs_and_its_history(
     page.goto(f"{base}/lab/history/")
     history = lab_history(lab.laboratory)
     codes = {r.code: r.own_code for r in history.rounds}
-    assert set(codes) == {EARLIER, CODE} and codes[EARLIER] != codes[CODE]
+    assert set(codes) == {EARLIER, CODE}  # a code is drawn per round: the two may agree
     main = page.locator("main")
     for round_code, own in codes.items():
         expect(main).to_contain_text(round_code)
