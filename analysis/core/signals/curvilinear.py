@@ -103,7 +103,9 @@ def curvilinear_sensitivity(
         results.append(
             AxisResult(axis, direction, f0, analysed, amp, a_ref, budget.value, budget, note=note)
         )
-    return SensitivityResult("curvilinear", method, m.fs_hz, m.u_fs_hz, f0, source, results, notes)
+    return SensitivityResult(
+        "curvilinear", method, m.fs_hz, m.u_fs_hz, f0, source, results, notes, m.frequency_hz
+    )
 
 
 def _reference_channel(mems: Record, reference: Record | None) -> tuple[Record, str]:

@@ -119,7 +119,9 @@ def linear_sensitivity(mems: Record, reference: Record | None, method: Method) -
         results.append(
             AxisResult(axis, "vertical", f, f, amp, comp, budget.value, budget, note=note)
         )
-    return SensitivityResult("linear", method, m.fs_hz, m.u_fs_hz, f, source, results)
+    return SensitivityResult(
+        "linear", method, m.fs_hz, m.u_fs_hz, f, source, results, fit_frequency_hz=m.frequency_hz
+    )
 
 
 def _reference(

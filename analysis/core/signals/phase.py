@@ -31,6 +31,7 @@ import numpy as np
 
 from analysis.core.groups import FloatArray
 from analysis.core.phase import wrap
+from analysis.core.signals.budget import Budget, Input, sensitivity_budget
 from analysis.core.signals.records import Record, SignalInputError
 from analysis.core.signals.sinefit import fit_known_frequency
 
@@ -57,6 +58,7 @@ class ChannelFit:
     u_amplitude: float
     phase_deg: float
     u_phase_deg: float
+    dof: float = float("inf")
 
 
 def fit_channel(samples: FloatArray, f_hz: float, fs_hz: float, start_s: float = 0.0) -> ChannelFit:
@@ -73,6 +75,7 @@ def fit_channel(samples: FloatArray, f_hz: float, fs_hz: float, start_s: float =
         u_amplitude=float(fit.u_amplitude[0, 0]),
         phase_deg=float(wrap(phase)),
         u_phase_deg=float(np.rad2deg(fit.u_phase[0, 0])),
+        dof=float(fit.dof),
     )
 
 
@@ -95,7 +98,9 @@ def _seconds(meta: dict[str, Any], key: str, where: str) -> float | None:
 
 def time_base(dut: Record, reference: Record | None) -> tuple[float, float, float] | None:
     """(start of the DUT record, start of the reference record, u of their offset) in
-    seconds on a common clock, or None where there is no common time base."""
+    seconds on a common clock, or None where there is no common time base.  Start times
+    are taken relative to the reference's (a clock time of 1.7e9 s would otherwise cost
+    digits in 360°·f·t)."""
     if reference is None or reference is dut:
         return 0.0, 0.0, 0.0
     offset = _seconds(dut.meta, "trigger_offset_s", dut.name)
@@ -107,7 +112,7 @@ def time_base(dut: Record, reference: Record | None) -> tuple[float, float, floa
     starts = (_seconds(dut.meta, "start_time_s", dut.name),
               _seconds(reference.meta, "start_time_s", reference.name))  # fmt: skip
     if starts[0] is not None and starts[1] is not None:
-        return starts[0], starts[1], u_offset
+        return starts[0] - starts[1], 0.0, u_offset
     return None
 
 
@@ -145,6 +150,8 @@ class AngularRate:
     u_sensitivity: float
     omega_deg_s: float
     phase: PhaseResult
+    budget: Budget | None = None
+    """The GUM budget of S (docs/domain.md §12.1): output amplitude, θ₀, f, encoder scale."""
 
     @property
     def per_rad_s(self) -> float:
@@ -161,16 +168,22 @@ def angular_rate_sensitivity(
     encoder_channel: str = "encoder_rad",
     u_f_rel: float = 0.0,
     u_encoder_rel: float = 0.0,
+    fs_hz: float | None = None,
+    fs_encoder_hz: float | None = None,
 ) -> AngularRate:
     """The gyroscope channel's sensitivity to angular rate on the rotating table, from the
     encoder's angle (``encoder_channel`` in radians, in the gyro's record when ``encoder``
     is None): S = A/(2πf·θ₀), u_rel² = u_rel²(A) + u_rel²(θ₀) + u_f_rel² + u_encoder_rel²
-    (``u_encoder_rel``: the encoder's angle scale, ``u_f_rel``: the frequency's)."""
+    (``u_encoder_rel``: the encoder's angle scale, ``u_f_rel``: the frequency's).  The
+    rates default to the records' own; pass the rate the sine fit found for a clock that
+    is not trusted."""
     enc = gyro if encoder is None else encoder
     base = time_base(gyro, encoder)
     start_g, start_e = (base[0], base[1]) if base else (0.0, 0.0)
-    out = fit_channel(gyro.channel(channel), f_hz, gyro.sampling_rate()[0], start_g)
-    theta = fit_channel(enc.channel(encoder_channel), f_hz, enc.sampling_rate()[0], start_e)
+    fs_g = fs_hz if fs_hz is not None else gyro.sampling_rate()[0]
+    fs_e = fs_encoder_hz if fs_encoder_hz is not None else enc.sampling_rate()[0]
+    out = fit_channel(gyro.channel(channel), f_hz, fs_g, start_g)
+    theta = fit_channel(enc.channel(encoder_channel), f_hz, fs_e, start_e)
     if theta.amplitude <= 0:
         raise SignalInputError(f"{enc.name}: the encoder shows no oscillation at {f_hz:g} Hz")
     omega = 2.0 * np.pi * f_hz * float(np.rad2deg(theta.amplitude))  # °/s
@@ -182,4 +195,22 @@ def angular_rate_sensitivity(
     else:
         u_ph = np.sqrt(out.u_phase_deg**2 + theta.u_phase_deg**2 + (360.0 * f_hz * base[2]) ** 2)
         phase = PhaseResult(float(wrap(out.phase_deg - theta.phase_deg - 90.0)), float(u_ph))
-    return AngularRate(float(s), float(s * rel), float(omega), phase)
+    budget = rate_budget(out, theta, f_hz, u_f_rel, u_encoder_rel)
+    return AngularRate(float(s), float(s * rel), float(omega), phase, budget)
+
+
+def rate_budget(
+    out: ChannelFit, theta: ChannelFit, f_hz: float, u_f_rel: float, u_encoder_rel: float
+) -> Budget:
+    """S = A/(2πf·θ₀) as a GUM budget (JCGM 100:2008 §5.1; ν_eff by G.4): each input has
+    ∂ln ω₀/∂q = 1/q, so u_rel² = u_rel²(A) + u_rel²(θ₀) + u_rel²(f) + u_rel²(encoder)."""
+    omega = 2.0 * np.pi * f_hz * float(np.rad2deg(theta.amplitude))
+    t0 = theta.amplitude
+    inputs = [
+        Input("encoder amplitude θ₀ (rad, fit residuals)", t0, theta.u_amplitude, 1.0 / t0,
+              theta.dof, "A"),
+        Input("excitation frequency f (Hz, encoder fit)", f_hz, u_f_rel * f_hz, 1.0 / f_hz,
+              theta.dof, "A"),
+        Input("encoder angle scale", t0, u_encoder_rel * t0, 1.0 / t0),
+    ]  # fmt: skip
+    return sensitivity_budget(out.amplitude, out.u_amplitude, out.dof, omega, inputs)

@@ -23,8 +23,10 @@ import numpy as np
 from analysis.core.groups import CoreInputError, FloatArray
 from common.sizes import counted
 
-CHANNELS = ("x", "y", "z", "ref", "encoder_rad")
+CHANNELS = ("x", "y", "z", "ref", "encoder_rad", "gx", "gy", "gz")
 MEMS_AXES = ("x", "y", "z")
+GYRO_AXES = ("gx", "gy", "gz")
+"""Gyroscope channels: angular rate about the MEMS x, y, z axes (docs/domain.md §12.1)."""
 INT16_RAIL = 32767
 """|sample| ≥ this is at the rail of a 16-bit output (+32767, −32767 or −32768)."""
 
@@ -85,8 +87,20 @@ _NUMBER_KEYS = {
     "oscillation_angle_deg": True,
     "tilt_deg": False,
     "rotation_deg": False,
+    "gyro_full_scale_dps": True,
 }  # key -> must be > 0
-_CHOICES = {"unit": ("digits", "m/s^2"), "bench": ("linear", "curvilinear")}
+MAX_TIME_S = 1e10
+"""Bound of the time keys (about 317 years): a clock time in seconds, never 1e308."""
+_TIME_KEYS = {
+    "trigger_offset_s": False,
+    "start_time_s": False,
+    "u_trigger_offset_s": True,
+}  # key -> must be >= 0 (docs/interfaces.md §2, phase)
+_CHOICES = {
+    "unit": ("digits", "m/s^2"),
+    "bench": ("linear", "curvilinear"),
+    "gyro_unit": ("digits", "deg/s"),
+}
 _DIRECTIONS = ("tangential", "radial", "axial")
 
 
@@ -101,6 +115,13 @@ def parse_meta(raw: Mapping[str, Any], where: str) -> dict[str, Any]:
         if positive and not value > 0:
             raise SignalInputError(f"{where}: {key} must be > 0, got {meta[key]!r}")
         meta[key] = value
+    for key, non_negative in _TIME_KEYS.items():
+        if meta.get(key) is not None:
+            meta[key] = _bounded(meta[key], f"{where}: {key}", non_negative, MAX_TIME_S, "s")
+    if meta.get("u_encoder_scale_rel") is not None:
+        meta["u_encoder_scale_rel"] = _bounded(
+            meta["u_encoder_scale_rel"], f"{where}: u_encoder_scale_rel", True, 1.0, ""
+        )
     for key, allowed in _CHOICES.items():
         if key in meta and meta[key] not in allowed:
             raise SignalInputError(
@@ -124,6 +145,16 @@ def _number(value: Any, what: str) -> float:
         raise SignalInputError(f"{what} must be a number, got {value!r}") from None
     if not np.isfinite(out):
         raise SignalInputError(f"{what} must be finite, got {value!r}")
+    return out
+
+
+def _bounded(value: Any, what: str, non_negative: bool, bound: float, unit: str) -> float:
+    """A finite number within ±bound (0..bound when ``non_negative``)."""
+    out = _number(value, what)
+    if non_negative and out < 0:
+        raise SignalInputError(f"{what} must be >= 0, got {value!r}")
+    if abs(out) > bound:
+        raise SignalInputError(f"{what} must be within ±{bound:g} {unit}, got {value!r}".rstrip())
     return out
 
 
@@ -197,7 +228,8 @@ def read_csv(content: bytes, name: str, meta: Mapping[str, Any] | None = None) -
             i = int(np.flatnonzero(steps <= 0)[0]) + 1
             raise SignalInputError(f"{name} line {i + 2}: t_s does not increase ({t_s[i]!r})")
     digits = m.get("unit", "digits") == "digits"
-    return Record(name, channels, data, m, t_s, _clipped(data, channels, digits))
+    gyro_digits = m.get("gyro_unit", "digits") == "digits"
+    return Record(name, channels, data, m, t_s, _clipped(data, channels, digits, gyro_digits))
 
 
 def _check_field_counts(
@@ -255,7 +287,7 @@ def read_int16(content: bytes, name: str, meta: Mapping[str, Any]) -> Record:
             "wrong 'channels' in the sidecar?)"
         )
     data = np.ascontiguousarray(samples.reshape(-1, n_ch).T, dtype=np.float64)
-    return Record(name, channels, data, m, None, _clipped(data, channels, True))
+    return Record(name, channels, data, m, None, _clipped(data, channels, True, True))
 
 
 def _check_finite(data: FloatArray, channels: tuple[str, ...], name: str, where: Any) -> None:
@@ -269,16 +301,18 @@ def _check_finite(data: FloatArray, channels: tuple[str, ...], name: str, where:
 
 
 def _clipped(
-    data: FloatArray, channels: tuple[str, ...], digits: bool
+    data: FloatArray, channels: tuple[str, ...], digits: bool, gyro_digits: bool
 ) -> dict[str, tuple[int, int]]:
-    """Samples at the int16 rails, per MEMS axis channel whose unit is digits."""
+    """Samples at the int16 rails, per MEMS axis (and gyroscope) channel whose unit is
+    digits."""
+    railed = (MEMS_AXES if digits else ()) + (GYRO_AXES if gyro_digits else ())
     rail = np.abs(data) >= INT16_RAIL
     counts = rail.sum(axis=1)
     first = rail.argmax(axis=1)
     return {
         ch: (int(counts[i]), int(first[i]))
         for i, ch in enumerate(channels)
-        if counts[i] and ch in MEMS_AXES and digits
+        if counts[i] and ch in railed
     }
 
 

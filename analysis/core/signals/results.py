@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -9,6 +10,7 @@ import numpy as np
 
 from analysis.core.groups import FloatArray
 from analysis.core.signals.budget import Budget
+from analysis.core.signals.phase import AngularRate, PhaseResult
 from analysis.core.signals.records import MEMS_AXES, Record, SignalInputError
 
 OK = "ok"
@@ -31,15 +33,25 @@ class AxisResult:
     budget: Budget | None
     status: str = OK
     note: str = ""
+    phase: PhaseResult | None = None
+    """The phase of the sensitivity (docs/domain.md §12.1), once ``axis_phase`` added it."""
 
     @property
     def standard_uncertainty(self) -> float | None:
         return self.budget.combined if self.budget else None
 
+    def phase_dict(self) -> dict[str, Any]:
+        """``phase_deg``, ``u_phase_deg`` and ``phase_note`` (docs/interfaces.md §5)."""
+        p = self.phase
+        if p is None:
+            return {}
+        return {"phase_deg": p.phase_deg, "u_phase_deg": p.u_phase_deg, "phase_note": p.note}
+
     def to_dict(self) -> dict[str, Any]:
         b = self.budget
         return {
             "axis": self.axis.upper(),
+            "sensor": "accelerometer",
             "direction": self.direction,
             "frequency_hz": self.frequency_hz,
             "analysis_frequency_hz": self.analysis_frequency_hz,
@@ -53,6 +65,51 @@ class AxisResult:
             "budget": b.to_dict()["components"] if b else [],
             "status": self.status,
             "note": self.note,
+        } | self.phase_dict()
+
+
+@dataclass(frozen=True)
+class RateAxisResult:
+    """Angular-rate sensitivity of one gyroscope axis on the rotating table (docs/domain.md
+    §12.1; docs/interfaces.md §5 ``axes`` entry with ``sensor`` = ``gyroscope``)."""
+
+    axis: str
+    direction: str
+    frequency_hz: float
+    analysis_frequency_hz: float
+    unit: str
+    rate: AngularRate | None
+    status: str = OK
+    note: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        r = self.rate
+        b = r.budget if r else None
+        per_rad = 180.0 / np.pi
+        phase = r.phase if r else PhaseResult(None, None, f"phase not determined: {self.status}")
+        return {
+            "axis": self.axis.upper(),
+            "sensor": "gyroscope",
+            "direction": self.direction,
+            "frequency_hz": self.frequency_hz,
+            "analysis_frequency_hz": self.analysis_frequency_hz,
+            "output_amplitude": b.components[0].value if b else None,
+            "reference_amplitude_m_s2": None,
+            "omega_deg_s": r.omega_deg_s if r else None,
+            "sensitivity": r.sensitivity if r else None,
+            "sensitivity_unit": f"{'digits' if self.unit == 'digits' else '(°/s)'}/(°/s)",
+            "sensitivity_per_rad_s": r.per_rad_s if r else None,
+            "standard_uncertainty_per_rad_s": r.u_sensitivity * per_rad if r else None,
+            "standard_uncertainty": r.u_sensitivity if r else None,
+            "expanded_uncertainty": b.expanded if b else None,
+            "coverage_factor": b.k if b else None,
+            "dof_eff": b.to_dict()["dof_eff"] if b else None,
+            "budget": b.to_dict()["components"] if b else [],
+            "status": self.status,
+            "note": self.note,
+            "phase_deg": phase.phase_deg,
+            "u_phase_deg": phase.u_phase_deg,
+            "phase_note": phase.note,
         }
 
 
@@ -66,8 +123,11 @@ class SensitivityResult:
     u_fs_hz: float
     frequency_hz: float
     reference_source: str
-    axes: list[AxisResult]
+    axes: Sequence[AxisResult | RateAxisResult]
     notes: list[str] = field(default_factory=list)
+    fit_frequency_hz: float | None = None
+    """The excitation frequency the DUT's sine fits used (measured with a trusted clock),
+    which the phase fits reuse; not in the JSON (``frequency_hz`` is the nominal f)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -181,3 +181,94 @@ def gyro_record(
     meta = {"channels": ("gz", "encoder_rad"), "fs_hz": fs, "frequency_hz": f,
             "bench": "curvilinear"}  # fmt: skip
     return Record("synthetic-gyro", ("gz", "encoder_rad"), data, meta)
+
+
+def linear_phase_records(
+    sensitivity: tuple[float, float, float] = (420.0, 418.0, 425.0),
+    phase_deg: float = -12.5,
+    *,
+    f: float = 80.0,
+    fs: float = 1663.7,
+    fs_nominal: float | None = 1660.0,
+    fs_ref: float = 5000.0,
+    tilt: float = 75.0,
+    a_ref: float = 10.0,
+    duration: float = 20.0,
+    offset_s: float = 0.0123,
+    time_base: str | None = "trigger",
+    noise_digits: float = 2.0,
+    seed: int = 0,
+) -> tuple[Record, Record]:
+    """A linear-bench record (x, y, z digits, tilt θ, α = 0) whose sensitivity lags the
+    acceleration by ``phase_deg`` on every axis, and the reference accelerometer's record
+    (``ref``, m/s², trusted clock ``fs_ref``) started ``offset_s`` earlier.  ``time_base``:
+    ``"trigger"`` writes ``trigger_offset_s``, ``"start"`` both ``start_time_s``, None
+    neither.  With ``fs_nominal`` the MEMS clock is only nominal (actual ``fs``)."""
+    rng = np.random.default_rng(seed)
+    w = 2 * np.pi * f
+    t_ref = np.arange(round(duration * fs_ref)) / fs_ref
+    t_dut = offset_s + np.arange(round(duration * fs)) / fs
+    t_rad = np.radians(tilt)
+    comp = a_ref * np.array([np.sin(t_rad), 0.0, np.cos(t_rad)])[:, None]  # signed projection
+    static = expected_components(G_N, tilt, 0.0)[:, None]
+    wave = np.cos(w * t_dut + 0.4 + np.radians(phase_deg))[None, :]
+    digits = np.asarray(sensitivity)[:, None] * (comp * wave + static)
+    digits = np.round(digits + rng.normal(0.0, noise_digits, digits.shape))
+    meta: dict = {"channels": ("x", "y", "z"), "bench": "linear", "frequency_hz": f,
+                  "tilt_deg": tilt, "rotation_deg": 0.0}  # fmt: skip
+    meta |= {"fs_nominal_hz": fs_nominal} if fs_nominal else {"fs_hz": fs}
+    ref_meta: dict = {"channels": ("ref",), "fs_hz": fs_ref, "frequency_hz": f}
+    if time_base == "trigger":
+        meta["trigger_offset_s"] = offset_s
+    elif time_base == "start":
+        meta["start_time_s"], ref_meta["start_time_s"] = 1.7e9 + offset_s, 1.7e9
+    ref = a_ref * np.cos(w * t_ref + 0.4)
+    return (Record("synthetic-linear-phase", ("x", "y", "z"), digits, meta),
+            Record("synthetic-linear-ref", ("ref",), ref[None, :], ref_meta))  # fmt: skip
+
+
+def imu_records(
+    sensitivity: tuple[float, float, float] = (420.0, 418.0, 425.0),
+    gyro_dps: float = 57.14,
+    *,
+    accel_phase_deg: float = -4.0,
+    gyro_phase_deg: float = -3.2,
+    f: float = 10.0,
+    fs: float = 1663.7,
+    fs_nominal: float = 1660.0,
+    angle_deg: float = 8.5,
+    radius: float = 0.170,
+    duration: float = 20.0,
+    encoder_fs: float = 1000.0,
+    offset_s: float | None = 0.0071,
+    noise_digits: float = 2.0,
+    seed: int = 0,
+) -> tuple[Record, Record]:
+    """An IMU on the oscillating rotating table (x tangential, y radial, z axial; gx, gy,
+    gz about the same axes, digits) and the table's encoder record (``encoder_rad``,
+    trusted clock).  θ(t) = θ₀ cos(2πft) with θ₀ half the swing; the tangential axis lags
+    r·θ̈ by ``accel_phase_deg``, gz = ``gyro_dps``·ω shifted by ``gyro_phase_deg``.  The
+    IMU record starts ``offset_s`` after the encoder's (its ``trigger_offset_s``; None:
+    no common time base written)."""
+    rng = np.random.default_rng(seed)
+    w, theta0 = 2 * np.pi * f, np.radians(angle_deg) / 2
+    t = (offset_s or 0.0) + np.arange(round(duration * fs)) / fs
+    a_t = radius * theta0 * w**2 * np.cos(w * t + np.pi + np.radians(accel_phase_deg))
+    a_r = radius * (w * theta0) ** 2 / 2 * (1 - np.cos(2 * w * t))
+    omega_dps = np.degrees(theta0) * w * np.cos(w * t + np.pi / 2 + np.radians(gyro_phase_deg))
+    accel = np.asarray(sensitivity)[:, None] * np.stack([a_t, a_r, np.full_like(t, G_N)])
+    gyro = np.stack([np.zeros_like(t), np.zeros_like(t), gyro_dps * omega_dps])
+    data = np.round(np.vstack([accel, gyro]) + rng.normal(0.0, noise_digits, (6, t.size)))
+    channels = ("x", "y", "z", "gx", "gy", "gz")
+    meta: dict = {
+        "channels": channels, "fs_nominal_hz": fs_nominal, "bench": "curvilinear",
+        "frequency_hz": f, "radius_m": radius, "oscillation_angle_deg": angle_deg,
+        "orientation": {"x": "tangential", "y": "radial", "z": "axial"},
+        "gyro_unit": "digits", "gyro_full_scale_dps": 500.0,
+    }  # fmt: skip
+    if offset_s is not None:
+        meta["trigger_offset_s"] = offset_s
+    enc = theta0 * np.cos(w * np.arange(round(duration * encoder_fs)) / encoder_fs)
+    enc_meta = {"channels": ("encoder_rad",), "fs_hz": encoder_fs, "frequency_hz": f}
+    return (Record("synthetic-imu", channels, data, meta),
+            Record("synthetic-imu-encoder", ("encoder_rad",), enc[None, :], enc_meta))  # fmt: skip

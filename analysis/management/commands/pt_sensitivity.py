@@ -14,7 +14,7 @@ import proficiency
 from analysis.core.groups import CoreInputError
 from analysis.core.signals.records import load_record
 from analysis.core.signals.results import SensitivityResult
-from analysis.core.signals.sensitivity import METHODS, record_sensitivity
+from analysis.core.signals.sensitivity import METHODS, record_analysis
 from analysis.offline import _table, write_output
 
 
@@ -44,7 +44,7 @@ class Command(BaseCommand):
                     Path(opts["reference"]), _path(opts["reference_sidecar"]),
                     {"frequency_hz": mems.meta.get("frequency_hz")},
                 )  # fmt: skip
-            result = record_sensitivity(mems, reference, opts["method"])
+            result = record_analysis(mems, reference, opts["method"])
         except CoreInputError as exc:
             raise CommandError(
                 f"{opts['file']} could not be analysed: {exc}", returncode=2
@@ -62,6 +62,7 @@ def _path(value: str | None) -> Path | None:
 
 
 def render_table(result: SensitivityResult, doc: dict[str, Any]) -> str:
+    accel = [a for a in doc["axes"] if a["sensor"] == "accelerometer"]
     parts = [
         f"{result.bench} bench, f = {result.frequency_hz:g} Hz, method {result.method}, "
         f"proficiency {doc['software_version']}",
@@ -75,8 +76,10 @@ def render_table(result: SensitivityResult, doc: dict[str, Any]) -> str:
             [[a["axis"], a["direction"], f"{a['analysis_frequency_hz']:g}", a["output_amplitude"],
               a["reference_amplitude_m_s2"], a["sensitivity"], a["standard_uncertainty"],
               a["expanded_uncertainty"], a["coverage_factor"], a["status"]]
-             for a in doc["axes"]],
+             for a in accel],
         ),
+        *_phase_table(accel),
+        *_rate_table([a for a in doc["axes"] if a["sensor"] == "gyroscope"]),
     ]  # fmt: skip
     for a in doc["axes"]:
         if a["note"]:
@@ -91,3 +94,28 @@ def render_table(result: SensitivityResult, doc: dict[str, Any]) -> str:
                   "∞" if c["dof"] is None else f"{c['dof']:.0f}"] for c in a["budget"]],
             ))  # fmt: skip
     return "\n".join(parts) + "\n"
+
+
+def _phase_table(axes: list[dict[str, Any]]) -> list[str]:
+    """The phase of each accelerometer axis, or why there is none (docs/domain.md §12.1)."""
+    if not axes:
+        return []
+    return ["", "PHASE against the reference", _table(
+        ["axis", "φ/°", "u(φ)/°", "note"],
+        [[a["axis"], a["phase_deg"], a["u_phase_deg"], a["phase_note"]] for a in axes],
+    )]  # fmt: skip
+
+
+def _rate_table(axes: list[dict[str, Any]]) -> list[str]:
+    """The gyroscope axes: angular-rate sensitivity per °/s and per rad/s, and phase to ω."""
+    if not axes:
+        return []
+    return ["", "ANGULAR RATE (gyroscope, ω = dθ/dt of the encoder)", _table(
+        ["axis", "direction", "f/Hz", "ω0 °/s", "S per °/s", "u(S)", "U(S)", "k", "S per rad/s",
+         "φ/°", "u(φ)/°", "status"],
+        [[a["axis"], a["direction"], f"{a['analysis_frequency_hz']:g}", a["omega_deg_s"],
+          a["sensitivity"], a["standard_uncertainty"], a["expanded_uncertainty"],
+          a["coverage_factor"], a["sensitivity_per_rad_s"], a["phase_deg"], a["u_phase_deg"],
+          a["status"]] for a in axes],
+    ), *[f"{a['axis']}: {a['phase_note'] or a['note']}" for a in axes
+         if a["phase_note"] or a["note"]]]  # fmt: skip
