@@ -32,9 +32,10 @@ from labs.importers.values import human_size
 #: form fields that are metadata keys (docs/interfaces.md §2); lists and objects come as JSON
 META_NUMBERS = (
     "fs_nominal_hz", "fs_hz", "full_scale_g", "a_ref_m_s2", "tilt_deg", "rotation_deg",
-    "radius_m", "reference_radius_m", "oscillation_angle_deg",
+    "radius_m", "reference_radius_m", "oscillation_angle_deg", "trigger_offset_s",
+    "u_trigger_offset_s", "start_time_s", "gyro_full_scale_dps", "u_encoder_scale_rel",
 )  # fmt: skip
-META_TEXT = ("unit",)
+META_TEXT = ("unit", "gyro_unit")
 META_JSON = ("orientation", "zones")
 PLOT_PERIODS = 4
 PLOT_HARMONICS = (1, 2, 3)

@@ -32,6 +32,20 @@ class RawUploadForm(forms.Form):
         required=False, help_text='JSON, e.g. {"x": "tangential", "y": "radial", "z": "axial"}'
     )
     reference_fs_hz = forms.CharField(required=False, label="Reference record rate (Hz)")
+    trigger_offset_s = forms.CharField(
+        required=False, label="Trigger offset (s), for the phase",
+        help_text="first sample of this record minus the reference record's, on one clock",
+    )  # fmt: skip
+    u_trigger_offset_s = forms.CharField(required=False, label="u(trigger offset) (s)")
+    start_time_s = forms.CharField(
+        required=False, label="Start time (s)", help_text="first sample, on a clock shared "
+        "with the reference record (give the reference's too)",
+    )  # fmt: skip
+    reference_start_time_s = forms.CharField(required=False, label="Reference start time (s)")
+    gyro_unit = forms.CharField(required=False, help_text="gx, gy, gz: digits or deg/s")
+    u_encoder_scale_rel = forms.CharField(
+        required=False, label="u_rel(encoder angle scale)", help_text="gyroscope budget, e.g. 0.001"
+    )
 
     def __init__(self, *args: Any, points: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -44,7 +58,9 @@ class RawUploadForm(forms.Form):
         return dict(p.key._asdict())
 
     def meta_fields(self) -> dict[str, Any]:
-        return {k: v for k, v in self.cleaned_data.items() if isinstance(v, str)}
+        return {k: v for k, v in self.cleaned_data.items()
+                if isinstance(v, str) and not k.startswith("reference_")}  # fmt: skip
 
     def reference_fields(self) -> dict[str, Any]:
-        return {"fs_hz": self.cleaned_data.get("reference_fs_hz", "")}
+        return {"fs_hz": self.cleaned_data.get("reference_fs_hz", ""),
+                "start_time_s": self.cleaned_data.get("reference_start_time_s", "")}  # fmt: skip

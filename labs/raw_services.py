@@ -37,7 +37,6 @@ from django.utils import timezone
 import proficiency
 from analysis.core.groups import CoreInputError
 from analysis.core.signals.records import SignalInputError
-from analysis.core.signals.sensitivity import record_sensitivity
 from common import jobs
 from common.errors import RequestTooLarge, ValidationFailed
 from common.jobs import heartbeat
@@ -45,7 +44,9 @@ from common.points import PointKey
 from labs.importers.values import human_size
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord, Result, Submission
 from labs.raw import form_metadata, read_record, sidecar_json
-from labs.raw_selectors import raw_record_read
+from labs.raw_outputs import en_number, recomputed_outputs
+
+__all__ = ["en_number"]  # its home before labs.raw_outputs; callers import it from here
 from labs.tasks import raw_recompute_task
 from proficiency.models import MeasurementPoint
 
@@ -290,7 +291,7 @@ def raw_recompute_execute(*, record_id: int, delivery: str = "") -> str:
     ).get(record_id=record_id)
     with heartbeat(lambda: _beat(row.pk, row.started_at), f"raw recomputation {row.pk}"):
         try:
-            outputs = _outputs(row)
+            outputs = recomputed_outputs(row)
         except CoreInputError as exc:
             return _finish(row, {"status": R.FAILED, "error": str(exc)})
         except Exception as exc:  # any other error is shown too, never a silent stuck row
@@ -329,47 +330,6 @@ def _finish(row: RawRecomputation, fields: dict[str, Any]) -> str:
         **fields
     )
     return str(RawRecomputation.objects.get(pk=row.pk).status)
-
-
-def _outputs(row: RawRecomputation) -> dict[str, Any]:
-    record = row.record
-    point = record.measurement_point
-    mems, reference = raw_record_read(record)
-    result = record_sensitivity(mems, reference, row.method)  # type: ignore[arg-type]
-    axes = result.to_dict()["axes"]
-    chosen = _axis_of_point(axes, point)
-    s, big_u = chosen["sensitivity"], chosen["expanded_uncertainty"]
-    return {
-        "fs_hz": result.fs_hz,
-        "u_fs_hz": result.u_fs_hz,
-        "axes": axes,
-        "sensitivity": s,
-        "standard_uncertainty": chosen["standard_uncertainty"],
-        "expanded_uncertainty": big_u,
-        "coverage_factor": chosen["coverage_factor"],
-        "budget": chosen["budget"],
-        "en": en_number(row.reported_value, row.reported_expanded_uncertainty, s, big_u),
-    }
-
-
-def _axis_of_point(axes: list[dict[str, Any]], point: MeasurementPoint) -> dict[str, Any]:
-    """The record's result for the point's axis (and direction on the curvilinear bench)."""
-    want_direction = point.bench == "curvilinear"
-    for a in axes:
-        if a["axis"] == point.axis and (not want_direction or a["direction"] == point.direction):
-            if a["sensitivity"] is None:
-                raise CoreInputError(f"axis {point.axis}: {a['status']}. {a['note']}".strip())
-            return a
-    given = ", ".join(f"{a['axis']} {a['direction']}" for a in axes)
-    raise CoreInputError(
-        f"the record gives no sensitivity for axis {point.axis} {point.direction} "
-        f"(it gives {given}); check 'orientation' in the metadata"
-    )
-
-
-def en_number(s_rep: float, big_u_rep: float, s_rec: float, big_u_rec: float) -> float:
-    """En = (S_reported − S_recomputed) / √(U_rep² + U_rec²) (ISO 13528:2022 §9.7 form)."""
-    return (s_rep - s_rec) / math.hypot(big_u_rep, big_u_rec)
 
 
 def raw_upload_build(

@@ -50,14 +50,23 @@ class RawUploadRequestSerializer(serializers.Serializer):
     orientation = _meta_field('JSON, e.g. {"x": "tangential", "y": "radial", "z": "axial"}')
     oscillation_angle_deg = _meta_field()
     zones = _meta_field('JSON, e.g. {"before": [0, 10]}')
+    trigger_offset_s = _meta_field("Phase: first sample minus the reference record's (s)")
+    u_trigger_offset_s = _meta_field("Phase: standard uncertainty of trigger_offset_s (s)")
+    start_time_s = _meta_field("Phase: first sample on a clock shared with the reference (s)")
+    gyro_unit = _meta_field("Gyroscope channels gx, gy, gz: digits or deg/s")
+    gyro_full_scale_dps = _meta_field()
+    u_encoder_scale_rel = _meta_field("Relative u of the encoder's angle scale (gyroscope)")
     reference_channels = _meta_field("Channels of the reference record")
     reference_fs_hz = _meta_field("Exact sampling rate of the reference record")
+    reference_start_time_s = _meta_field("Phase: the reference record's start_time_s")
+
+
+REFERENCE_KEYS = ("reference_channels", "reference_fs_hz", "reference_start_time_s")
 
 
 def reference_fields(data: dict[str, Any]) -> dict[str, Any]:
     """``reference_<key>`` form fields as the reference record's metadata fields."""
-    return {k.removeprefix("reference_"): v for k, v in data.items()
-            if k in ("reference_channels", "reference_fs_hz")}  # fmt: skip
+    return {k.removeprefix("reference_"): v for k, v in data.items() if k in REFERENCE_KEYS}
 
 
 class RawFileSerializer(serializers.ModelSerializer):

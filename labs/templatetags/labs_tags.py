@@ -18,6 +18,7 @@ from common.points import format_number, point_label
 from labs.access import managed_labs
 from labs.models import Enrolment, Laboratory, Participant, Submission
 from labs.notices import notices_unread_count
+from labs.raw_figures import record_figures
 from labs.selectors import scope_text
 from proficiency.models import ComparisonStatus, MeasurementPoint
 from proficiency.protocols import BenchPlan
@@ -102,6 +103,12 @@ def nums(values: Iterable[float]) -> str:
 def amplitude_rows(plan: BenchPlan) -> list[tuple[str, str, float]]:
     """A bench plan's expected excitation as (frequency, direction, amplitude) rows."""
     return [(format_number(f), d, a) for (f, d), a in sorted(plan.amplitudes.items())]
+
+
+@register.filter
+def raw_figures(axes: list[dict[str, Any]] | None) -> dict[str, list[dict[str, Any]]]:
+    """A recomputation's phases and gyroscope rows (``labs.raw_figures.record_figures``)."""
+    return record_figures(axes or [])
 
 
 # --- numbers a person reads (docs/domain.md §3.1); downloads and the API never round ------

@@ -105,8 +105,11 @@ _DIRECTIONS = ("tangential", "radial", "axial")
 
 
 def parse_meta(raw: Mapping[str, Any], where: str) -> dict[str, Any]:
-    """Validate metadata keys of docs/interfaces.md §2; unknown keys are kept as they are."""
+    """Validate metadata keys of docs/interfaces.md §2; unknown keys are kept as they are
+    (but, like every key, never with a control character or a non-finite number)."""
     meta = dict(raw)
+    for key, value in meta.items():
+        _check_plain(value, f"{where}: {key}", str(key))
     for key, positive in _NUMBER_KEYS.items():
         if meta.get(key) is None:
             meta.pop(key, None)
@@ -146,6 +149,29 @@ def _number(value: Any, what: str) -> float:
     if not np.isfinite(out):
         raise SignalInputError(f"{what} must be finite, got {value!r}")
     return out
+
+
+_CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f]")
+"""C0 characters no metadata text needs (NUL cannot even be stored by PostgreSQL)."""
+
+
+def _check_plain(value: Any, what: str, key: str = "") -> None:
+    """Refuse a control character (in a key or a text) or a non-finite number, anywhere in
+    a (nested) metadata value, naming the key's path."""
+    for text in (key, value if isinstance(value, str) else ""):
+        if found := _CONTROL.search(text):
+            shown = what.encode("unicode_escape").decode("ascii")  # a NUL in a key, escaped
+            raise SignalInputError(
+                f"{shown} holds the control character U+{ord(found.group()):04X}"
+            )
+    if isinstance(value, float) and not np.isfinite(value):
+        raise SignalInputError(f"{what} must be finite, got {value!r}")
+    if isinstance(value, Mapping):
+        for k, v in value.items():
+            _check_plain(v, f"{what}.{k}", str(k))
+    elif isinstance(value, list | tuple):
+        for i, v in enumerate(value):
+            _check_plain(v, f"{what}[{i}]")
 
 
 def _bounded(value: Any, what: str, non_negative: bool, bound: float, unit: str) -> float:
