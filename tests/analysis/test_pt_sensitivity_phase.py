@@ -133,7 +133,7 @@ def test_a_gyroscope_and_encoder_in_one_record_csv(tmp_path):
         ({"trigger_offset_s": "NaN"}, "trigger_offset_s must be finite"),
         ({"start_time_s": 1e308}, "start_time_s must be within ±1e\\+10 s"),
         ({"u_trigger_offset_s": -1e-6}, "u_trigger_offset_s must be >= 0"),
-        ({"trigger_offset_s": "0.01\u0000"}, "trigger_offset_s must be a number"),
+        ({"trigger_offset_s": "0.01\u0000"}, "trigger_offset_s holds the control character"),
         ({"gyro_unit": "rad/s"}, "gyro_unit must be one of digits, deg/s"),
         ({"u_encoder_scale_rel": 2.0}, "u_encoder_scale_rel must be within ±1"),
     ],

@@ -70,7 +70,7 @@ def test_a_clipped_gyroscope_axis_is_not_used():
         ("trigger_offset_s", 1e308, "must be within"),
         ("start_time_s", -1e308, "must be within"),
         ("u_trigger_offset_s", -0.001, "must be >= 0"),
-        ("u_trigger_offset_s", "1\x00", "must be a number"),
+        ("u_trigger_offset_s", "1\x00", "holds the control character U\\+0000"),
         ("gyro_full_scale_dps", 0, "must be > 0"),
         ("u_encoder_scale_rel", -0.1, "must be >= 0"),
     ],
