@@ -12,8 +12,9 @@ found, with the DUT rate they found (``SensitivityResult.fit_frequency_hz``, ``f
   the encoder's angle, against which the tangential acceleration r·θ̈ is at 180°;
 * a radial axis is read at 2f, a harmonic of the motion: no phase is given for it.
 
-Without a reference channel (``a_ref_m_s2`` only) or a common time base, the axis says
-why and carries no number.
+Without a reference channel (``a_ref_m_s2`` only), a common time base, or a trusted
+clock (``fs_hz``) of a separate reference record, the axis says why and carries no
+number.
 """
 
 from __future__ import annotations
@@ -29,6 +30,9 @@ from analysis.core.signals.results import AxisResult, RateAxisResult, Sensitivit
 
 NO_REFERENCE = "phase not determinable: no reference channel"
 RADIAL = "phase not determined: a radial axis is read at 2f"
+NOMINAL_REFERENCE_CLOCK = (
+    "phase not determinable: the reference record's rate is only nominal (give its fs_hz)"
+)
 
 Reference = tuple[Record | None, str, float]
 """(the reference record, None for the DUT's own; its channel; the phase of the axis's
@@ -75,6 +79,8 @@ def axis_phase(
     if axis.direction == "radial":
         return PhaseResult(None, None, RADIAL)
     rec, channel, shift = ref
+    if rec is not None and not rec.sampling_rate()[1]:  # its fit at a nominal rate drifts
+        return PhaseResult(None, None, NOMINAL_REFERENCE_CLOCK)
     fs_ref = fs_hz if rec is None else None
     got = relative_phase(mems, axis.axis, rec, channel, f_hz, fs_hz=fs_hz, fs_reference_hz=fs_ref)
     if got.phase_deg is None:

@@ -41,6 +41,17 @@ def test_no_reference_channel_says_so():
     assert axes["X"]["phase_note"] == "phase not determinable: no reference channel"
 
 
+def test_a_reference_record_with_a_nominal_rate_gives_no_phase_number():
+    """Its fit at a nominal rate would drift by degrees over the record: no number."""
+    dut, ref = linear_phase_records()
+    meta = {k: v for k, v in ref.meta.items() if k != "fs_hz"} | {"fs_nominal_hz": 5000.0}
+    nominal = Record(ref.name, ref.channels, ref.data, meta)
+    axes = _axes(record_analysis(dut, nominal))
+    assert axes["X"]["sensitivity"] == pytest.approx(420.0, rel=5e-4)
+    assert axes["X"]["phase_deg"] is None
+    assert axes["X"]["phase_note"].endswith("only nominal (give its fs_hz)")
+
+
 def test_gyroscope_channels_on_the_linear_bench_or_without_an_encoder_are_not_computed():
     mems, enc = imu_records()
     axes = _axes(record_analysis(mems, enc))
