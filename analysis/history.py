@@ -134,6 +134,24 @@ class LabHistory:
     points: list[PointHistory]
 
 
+Trend = tuple[list[str], list[list[float]], list[list[float]]]
+
+
+def trend_series(rounds: list[RoundSummary], points: list[PointHistory]) -> Trend:
+    """The trend chart's data (``analysis.history_chart``): the rounds' codes in order and,
+    per round, the laboratory's En and its z (the one that counts) at every point; drawn
+    from the same numbers on ``/lab/history/``, the coordinator's view and the report."""
+    codes = [r.code for r in rounds]
+    en: dict[str, list[float]] = {c: [] for c in codes}
+    z: dict[str, list[float]] = {c: [] for c in codes}
+    for point in points:
+        for e in point.entries:
+            en[e.round_code].append(e.en)
+            if e.z is not None:
+                z[e.round_code].append(e.z)
+    return codes, [en[c] for c in codes], [z[c] for c in codes]
+
+
 def round_date(comparison: Comparison) -> dt.datetime:
     """The date a round is known by in a history: its submission deadline, else its
     creation."""

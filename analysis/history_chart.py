@@ -1,28 +1,36 @@
 """The trend chart of a laboratory's history (docs/domain.md §4.1): its En and its z (the one
-that counts) per round, plain data in, SVG text out, drawn as ``analysis.charts`` draws
-(matplotlib's object-oriented API, byte-stable SVG)."""
+that counts) per round, plain data in, a matplotlib figure (``history_figure``, the
+participant report rasterises it) or SVG text (``history_chart``, the pages) out, drawn as
+``analysis.charts`` draws (matplotlib's object-oriented API, byte-stable SVG)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from analysis.charts import BAD, LAB, OWN, _figure, _svg, _with_rc
 
 #: z limits of ISO 13528:2022 9.4.2 (warning above 2, action from 3)
 Z_WARNING, Z_ACTION = 2.0, 3.0
+TITLE = "History: En and z per round"
+#: "how to read this" under the chart (the pages and the participant report)
+CAPTION = (
+    "En and z (z′ where it counts) at every point, per round; the line joins the rounds' "
+    "mean |score|; red: outside |En| ≤ 1, |z| ≤ 2."
+)
 
 
 @_with_rc
-def history_chart(
+def history_figure(
     rounds: Sequence[str],
     en: Sequence[Sequence[float]],
     z: Sequence[Sequence[float]],
     *,
     en_limit: float = 1.0,
-    title: str = "History: En and z per round",
-) -> str:
+    title: str = TITLE,
+) -> Figure:
     """One column per round (in order): the laboratory's En at each of its points above,
     its z (or z′) below, each with its limits; a line joins the rounds' mean |score|."""
     fig = _figure(5.6, 4.2)
@@ -33,7 +41,19 @@ def history_chart(
     bottom.set_xticks(x, list(rounds), rotation=30 if len(rounds) > 4 else 0)
     bottom.set_xlabel("Round")
     top.set_title(title)
-    return _svg(fig, label=title)
+    return fig
+
+
+def history_chart(
+    rounds: Sequence[str],
+    en: Sequence[Sequence[float]],
+    z: Sequence[Sequence[float]],
+    *,
+    en_limit: float = 1.0,
+    title: str = TITLE,
+) -> str:
+    """:func:`history_figure` as inline SVG (the history pages)."""
+    return _svg(history_figure(rounds, en, z, en_limit=en_limit, title=title), label=title)
 
 
 def _panel(ax, x: np.ndarray, values: Sequence[Sequence[float]], limits: tuple[float, ...],

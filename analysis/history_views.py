@@ -20,7 +20,7 @@ from django.views.decorators.http import require_GET
 from analysis import history_chart as drawing
 from analysis.chart_cache import TIMEOUT
 from analysis.chart_cache import VERSION as CHARTS_VERSION
-from analysis.history import LabHistory, lab_history
+from analysis.history import LabHistory, lab_history, trend_series
 from labs.models import Laboratory
 from labs.selectors import user_laboratories
 
@@ -48,15 +48,7 @@ def trend_chart(history: LabHistory) -> str:
     their digest: a published run never changes)."""
     if not history.rounds:
         return ""
-    codes = [r.code for r in history.rounds]
-    en: dict[str, list[float]] = {c: [] for c in codes}
-    z: dict[str, list[float]] = {c: [] for c in codes}
-    for point in history.points:
-        for e in point.entries:
-            en[e.round_code].append(e.en)
-            if e.z is not None:
-                z[e.round_code].append(e.z)
-    data = (codes, [en[c] for c in codes], [z[c] for c in codes])
+    data = trend_series(history.rounds, history.points)
     key = hashlib.sha256(repr((VERSION, data)).encode()).hexdigest()[:32]
     svg = cache.get(f"pt:chart:history:{key}")
     if svg is None:
@@ -71,5 +63,6 @@ def lab_history_page(request: AuthenticatedHttpRequest) -> HttpResponse:
     labs = list(user_laboratories(request.user).order_by("name"))
     lab = _chosen(labs, request.GET.get("lab", ""))
     history = lab_history(lab)
-    context = {"labs": labs, "lab": lab, "history": history, "chart": trend_chart(history)}
+    context = {"labs": labs, "lab": lab, "history": history, "chart": trend_chart(history),
+               "chart_caption": drawing.CAPTION}  # fmt: skip
     return render(request, "labs/lab_history.html", context)

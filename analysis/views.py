@@ -32,6 +32,7 @@ from analysis.archive import archive_shown
 from analysis.chart_cache import cached_chart
 from analysis.forms import CompatibilityForm, ScoreFilterForm
 from analysis.history import lab_history
+from analysis.history_chart import CAPTION as HISTORY_CAPTION
 from analysis.history_views import trend_chart
 from analysis.models import AnalysisRun, AssignedValue, Publication, RoundArchive, Score
 from analysis.performance import lab_performance, performance
@@ -343,7 +344,8 @@ def participant_performance(
     history = lab_history(found.laboratory, within=coordinated_comparisons(request.user))
     context = {"lab": lab, "summary": lab_performance(viewer.run, lab),
                "scores_url": viewer.url("scores"), "history": history,
-               "chart": trend_chart(history), "within_note": "that you coordinate",
+               "chart": trend_chart(history), "chart_caption": HISTORY_CAPTION,
+               "within_note": "that you coordinate",
                "charts_url": viewer.url("charts"), "overview": _overview(viewer, lab)}  # fmt: skip
     return _render(request, viewer, "participant_performance", context)
 

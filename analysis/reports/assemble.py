@@ -15,8 +15,8 @@ from django.conf import settings
 from django.contrib.auth.models import User
 
 import proficiency
-from analysis import performance
-from analysis.history import PointHistory, RoundSummary, lab_histories, round_date
+from analysis import graph_data, performance
+from analysis.history import PointHistory, RoundSummary, lab_histories, round_date, trend_series
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score, method_label
 from analysis.reports.consistency import consistency_summary
 from analysis.reports.data import (
@@ -28,6 +28,7 @@ from analysis.reports.data import (
     HistoryPoint,
     HistoryRound,
     LabSummary,
+    MandelRound,
     MatrixData,
     PerformanceLine,
     PointInfo,
@@ -124,6 +125,7 @@ class RunContext:
     stats: RoundStats
     rows: tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]] | None
     consistency: ConsistencySummary | None = None
+    mandel: MandelRound | None = None
 
 
 _CONTEXTS: OrderedDict[tuple[object, ...], RunContext] = OrderedDict()
@@ -180,7 +182,17 @@ def _build_context(run: AnalysisRun, key: tuple[object, ...]) -> RunContext:
         stats=stats,
         rows=rows,
         consistency=consistency_summary(run, index),
+        mandel=_mandel(run),
     )
+
+
+def _mandel(run: AnalysisRun) -> MandelRound | None:
+    """Mandel's h and k as the web's charts read them (``graph_data.mandel_data``: the
+    run's points and every result's mean and repeat standard deviation, two queries)."""
+    found = graph_data.mandel_data(run)
+    if found.graph is None:
+        return None
+    return MandelRound(tuple(found.labs), tuple(found.points), tuple(found.devices), found.graph)
 
 
 def _stream_stats(
@@ -194,7 +206,7 @@ def _stream_stats(
 ) -> RoundStats:
     """The round's figures from every score of the run, read in chunks into numpy columns
     (memory: a few arrays of ``n_scores`` numbers, no row objects)."""
-    cols = np.empty((6, n_scores))
+    cols = np.empty((8, n_scores))
     rows = (
         Score.objects.filter(run=run)
         .order_by()
@@ -206,14 +218,20 @@ def _stream_stats(
             "en",
             "z",
             "z_prime",
+            "result__coverage_factor",
+            "correlation_applied",
+            "correlation_failed",
         )
     )
     filled = 0
-    chunk: list[tuple[int, int, float, float, float, float]] = []
+    chunk: list[tuple[float, ...]] = []
     nan = float("nan")
-    for pid, part, x, big_u, en, z, z_prime in rows.iterator(chunk_size=_STREAM_ROWS):
+    for pid, part, x, big_u, en, z, z_prime, k, applied, failed in rows.iterator(
+        chunk_size=_STREAM_ROWS
+    ):
         used = z if use_z.get(pid, False) else z_prime
-        chunk.append((pid, part, x, big_u, en, nan if used is None else used))
+        chunk.append((pid, part, x, big_u, en, nan if used is None else used, k,
+                      float(applied or failed)))  # fmt: skip
         if len(chunk) == _STREAM_ROWS:
             filled = _fill(cols, filled, chunk)
     filled = _fill(cols, filled, chunk)
@@ -226,14 +244,14 @@ def _stream_stats(
     order = np.argsort(part_ids)
     lab = order[np.searchsorted(part_ids[order], cols[1].astype(np.int64))]
     codes = [code for _, code, _ in parts]
+    doe = (cols[3] / cols[6], cols[7] > 0)  # U/k and the correction, as graph_data reads them
     return round_stats(
-        points, codes, (point, lab, cols[2], cols[3]), (point, lab, cols[4], cols[5]), en_limit
-    )
+        points, codes, (point, lab, cols[2], cols[3]), (point, lab, cols[4], cols[5]), en_limit,
+        doe,
+    )  # fmt: skip
 
 
-def _fill(
-    cols: np.ndarray, filled: int, chunk: list[tuple[int, int, float, float, float, float]]
-) -> int:
+def _fill(cols: np.ndarray, filled: int, chunk: list[tuple[float, ...]]) -> int:
     if chunk:
         end = min(filled + len(chunk), cols.shape[1])
         cols[:, filled:end] = np.array(chunk[: end - filled], dtype=float).T
@@ -441,6 +459,7 @@ def report_data(
         performance=_own_summary(participant.code, context.points, scores) if participant else None,
         performances=() if participant else _summaries(run),
         history=_history(run, participant, history),
+        mandel=context.mandel,
     )
 
 
@@ -477,7 +496,9 @@ def _report_history(rounds: list[RoundSummary], points: list[PointHistory]) -> R
             if c is not None
             else HistoryPoint(p.key.label, p.n_rounds, None, "", None, "")
         )
-    return ReportHistory(found, tuple(rows))
+    codes, en, z = trend_series(rounds, points)
+    trend = tuple((c, tuple(e), tuple(zz)) for c, e, zz in zip(codes, en, z, strict=True))
+    return ReportHistory(found, tuple(rows), trend)
 
 
 def _counts(t: performance.Tally) -> Counts:

@@ -67,9 +67,9 @@ def _figure(width: float, height: float, **margins: float) -> tuple[Figure, Any]
     return fig, fig.add_subplot()
 
 
-def _raster(fig: Figure) -> Raster:
+def _raster(fig: Figure, rc: dict[Any, Any] = RC) -> Raster:
     """Draw and grab the RGB pixels (white background, no alpha: no soft mask needed)."""
-    with matplotlib.rc_context(RC):
+    with matplotlib.rc_context(rc):
         fig.canvas.draw()
     canvas = cast(FigureCanvasAgg, fig.canvas)  # the one _figure gave it
     rgb = np.ascontiguousarray(np.asarray(canvas.buffer_rgba())[:, :, :3]).tobytes()
@@ -208,10 +208,10 @@ class Shared:
     ax: Any
     to_px: Any  # the axes' data → pixel transform, frozen once drawn (the figure is dropped)
 
-    def _freeze(self) -> None:
+    def _freeze(self, rc: dict[Any, Any] = RC) -> None:
         """Rasterise, keep the data → pixel transform and drop the figure: a cached chart
         of ten thousand labs would otherwise hold its artists (megabytes) for good."""
-        self.raster = _raster(self.fig)
+        self.raster = _raster(self.fig, rc)
         self.to_px = self.ax.transData.frozen()
         del self.fig, self.ax
 
@@ -303,14 +303,31 @@ def point_chart(
     )
 
 
-class EnChart(Shared):
+class BarChart(Shared):
+    """One bar per lab at x = 0, 1, ... (``index``: a lab's position, ``values``: the bars'
+    heights as drawn); the reader's own bar is an overlay of the same box."""
+
+    WIDTH: float
+    index: dict[str, int]
+    values: tuple[float, ...]
+
+    def overlay(self, highlight: str | None) -> Overlay | None:
+        i = self.index.get(highlight) if highlight else None
+        if i is None:
+            return None
+        half = self.WIDTH / 2
+        (x0, y0), (x1, y1) = self._px(i - half, 0.0), self._px(i + half, self.values[i])
+        return Overlay(rects=((x0, min(y0, y1), x1, max(y0, y1)),))
+
+
+class EnChart(BarChart):
     """Largest |En| of each lab over all points, with the compatibility limit."""
 
     WIDTH = 0.6
 
     def __init__(self, labs: tuple[str, ...], max_en: tuple[float, ...], *, limit: float) -> None:
         self.index = _positions(labs)
-        self.max_en = max_en
+        self.values = max_en
         with matplotlib.rc_context(RC):
             self.fig, self.ax = _figure(6.4, 2.4)
             ax = self.ax
@@ -329,14 +346,6 @@ class EnChart(Shared):
             else:
                 ax.legend(loc="best", fontsize=7, frameon=False)
         self._freeze()
-
-    def overlay(self, highlight: str | None) -> Overlay | None:
-        i = self.index.get(highlight) if highlight else None
-        if i is None:
-            return None
-        half = self.WIDTH / 2
-        (x0, y0), (x1, y1) = self._px(i - half, 0.0), self._px(i + half, self.max_en[i])
-        return Overlay(rects=((x0, y0, x1, y1),))
 
 
 @functools.lru_cache(maxsize=8)
@@ -383,7 +392,7 @@ def _limit_lines(ax: Any, limits: tuple[float, ...]) -> None:
     ax.axhline(0.0, color="#6c757d", lw=0.6)
 
 
-class SortedChart(Shared):
+class SortedChart(BarChart):
     """Every lab's score at one point in ascending order (ISO 13528:2022 10.3, sorted bar
     chart), coloured by verdict, with the limits; the reader's own bar is an overlay."""
 
@@ -413,14 +422,6 @@ class SortedChart(Shared):
             ax.set_ylabel(ylabel)
             ax.set_title(title)
         self._freeze()
-
-    def overlay(self, highlight: str | None) -> Overlay | None:
-        i = self.index.get(highlight) if highlight else None
-        if i is None:
-            return None
-        half = self.WIDTH / 2
-        (x0, y0), (x1, y1) = self._px(i - half, 0.0), self._px(i + half, self.values[i])
-        return Overlay(rects=((x0, min(y0, y1), x1, max(y0, y1)),))
 
 
 @functools.lru_cache(maxsize=64)

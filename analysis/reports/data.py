@@ -8,6 +8,7 @@ from datetime import datetime
 
 import numpy as np
 
+from analysis.core.graphs import MandelGraph
 from common.points import PointKey, point_label
 
 SUMMARY = "summary"
@@ -220,11 +221,16 @@ class SpreadRow:
 
 @dataclass(frozen=True)
 class PointValues:
-    """Every lab's result at one point, labs in code order (a point chart's data)."""
+    """Every lab's result at one point, labs in code order (a point chart's data), with
+    what its degrees of equivalence take (``analysis.graph_data.PointData.doe``): each
+    result's standard uncertainty U/k and whether its En had the correlation correction
+    (inside x_pt, or tried and failed: a sole contributor)."""
 
     labs: tuple[str, ...]
     values: tuple[float, ...]
     uncertainties: tuple[float, ...]
+    standard: tuple[float, ...] = ()
+    in_assigned: tuple[bool, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -284,6 +290,18 @@ class RoundStats:
     point_scores: Mapping[int, PointScores] = field(default_factory=dict)
 
 
+@dataclass(frozen=True, eq=False)
+class MandelRound:
+    """Mandel's h and k of every participant at every point of a run, as the web's
+    ``analysis.graph_data.mandel_data`` reads them: participants by code, the points'
+    labels and devices (the chart's groups) and ``core.graphs.MandelGraph``."""
+
+    labs: tuple[str, ...]
+    points: tuple[str, ...]
+    devices: tuple[str, ...]
+    graph: MandelGraph
+
+
 @dataclass(frozen=True)
 class HistoryRound:
     """One round of the participant's history (``analysis.history.RoundSummary``): its code
@@ -313,10 +331,13 @@ class HistoryPoint:
 
 @dataclass(frozen=True)
 class ReportHistory:
-    """The participant's own history up to the report's round, never another laboratory's."""
+    """The participant's own history up to the report's round, never another laboratory's;
+    ``trend``: per round (in order) its En and its z at every point, the web's trend chart
+    data (``analysis.history.trend_series``)."""
 
     rounds: tuple[HistoryRound, ...]
     points: tuple[HistoryPoint, ...]
+    trend: tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -369,6 +390,8 @@ class ReportData:
     performances: tuple[LabSummary, ...] = ()
     # The participant's history over the rounds up to this one (a participant report).
     history: ReportHistory | None = None
+    # Mandel's h and k of the run (docs/domain.md §11.1); None: none drawn.
+    mandel: MandelRound | None = None
     # The provider's furniture (docs/domain.md §9, the PT_PROVIDER_* settings), printed on
     # the title page; the logo is the path of a PNG or JPEG file ("" or missing: no logo).
     provider_address: str = ""

@@ -189,16 +189,20 @@ def story(data: ReportData) -> list[Flowable]:
     return keep_headings(flow)
 
 
-HEADINGS = frozenset({"h1", "h2"})
+#: the styles of what introduces the flowable after it: the headings and an intro sentence
+#: (``sections.intro``: "Your laboratory took part in 3 rounds", then the rounds' table)
+KEEP_WITH_NEXT = frozenset({"h1", "h2", "intro"})
 
 
 def is_heading(f: Flowable) -> bool:
-    return isinstance(f, Paragraph) and f.style.name in HEADINGS
+    """A heading or an intro sentence: never the last line of a page."""
+    return isinstance(f, Paragraph) and f.style.name in KEEP_WITH_NEXT
 
 
 def keep_headings(flow: list[Flowable]) -> list[Flowable]:
-    """Each heading bound to the flowable after it (:class:`WithNext`), from the end so a
-    heading followed by a heading keeps both with the text after them."""
+    """Each heading or intro sentence bound to the flowable after it (:class:`WithNext`),
+    from the end so a heading followed by an intro (or a heading) keeps both with the
+    table or text after them."""
     out: list[Flowable] = []
     for f in reversed(flow):
         if is_heading(f) and out:
@@ -230,14 +234,22 @@ class WithNext(Flowable):
 
     def split(self, availWidth: float, availHeight: float) -> list[Flowable]:
         frame = getattr(self, "_frame", None)
-        self.following.canv, self.following._frame = getattr(self, "canv", None), frame
+        chain = self.chain()  # what follows, down a heading → intro → table chain
+        for f in chain:  # as the frame sets them on a flowable it wraps (KeepTogether needs)
+            f.canv, f._frame = getattr(self, "canv", None), frame
         try:
             found = self.placed(availWidth, availHeight)
         finally:
-            del self.following.canv, self.following._frame
+            for f in chain:
+                del f.canv, f._frame
         if found or not getattr(frame, "_atTop", False):
             return found
         return [self.heading, self.following]  # at the top of a page: as without a heading
+
+    def chain(self) -> list[Flowable]:
+        """What follows the heading: the flowable, or the nested ones of a :class:`WithNext`."""
+        following = self.following
+        return [following, *following.chain()] if isinstance(following, WithNext) else [following]
 
     def placed(self, width: float, height: float) -> list[Flowable]:
         """The heading and what follows (whole or split) if the start of what follows fits

@@ -50,10 +50,12 @@ def round_stats(
     results: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     scores: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
     en_limit: float,
+    doe: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> RoundStats:
     """The figures of a round from columns: ``results`` = (point index, lab index into
     ``codes``, value, expanded uncertainty), ``scores`` = (point index, lab index, En, z
-    or z′ as it counts, NaN for none)."""
+    or z′ as it counts, NaN for none); ``doe`` = (standard uncertainty U/k, inside x_pt
+    with the correlation correction) of each result, the degrees of equivalence's data."""
     rank = np.empty(len(codes), dtype=np.int64)
     rank[sorted(range(len(codes)), key=codes.__getitem__)] = np.arange(len(codes))
     r_point, r_lab, value, unc = (np.asarray(a) for a in results)
@@ -62,6 +64,7 @@ def round_stats(
     s_point, s_lab = s_point.astype(np.int64), s_lab.astype(np.int64)
     order = np.lexsort((rank[r_lab], r_point))
     r_point, r_lab, value, unc = r_point[order], r_lab[order], value[order], unc[order]
+    standard, inside = (None, None) if doe is None else (np.asarray(a)[order] for a in doe)
     bad_at = np.abs(np.asarray(en, dtype=float)) > en_limit
     bad_per_point = np.bincount(s_point[bad_at], minlength=len(points))
     spread, by_point, sorted_values = [], {}, {}
@@ -76,6 +79,8 @@ def round_stats(
             tuple(codes[i] for i in r_lab[start:end].tolist()),
             tuple(value[start:end].tolist()),
             tuple(unc[start:end].tolist()),
+            () if standard is None else tuple(standard[start:end].tolist()),
+            () if inside is None else tuple(bool(b) for b in inside[start:end].tolist()),
         )
     largest = np.zeros(len(codes))
     np.maximum.at(largest, s_lab, np.abs(np.asarray(en, dtype=float)))
@@ -142,6 +147,7 @@ def stats_of_rows(
     """:func:`round_stats` of row tuples (a summary, a small round, a test's data)."""
     codes = sorted({r.lab for r in results} | {s.lab for s in scores})
     lab = {c: i for i, c in enumerate(codes)}
+    corrected = {(s.point, s.lab) for s in scores if s.correlation_applied or s.correlation_failed}
     r_cols = (
         np.array([r.point for r in results], dtype=np.int64),
         np.array([lab[r.lab] for r in results], dtype=np.int64),
@@ -154,4 +160,8 @@ def stats_of_rows(
         np.array([s.en for s in scores], dtype=float),
         np.array([np.nan if s.z is None else s.z for s in scores], dtype=float),
     )
-    return round_stats(points, codes, r_cols, s_cols, en_limit)
+    doe = (
+        np.array([r.expanded_uncertainty / r.coverage_factor for r in results], dtype=float),
+        np.array([(r.point, r.lab) in corrected for r in results], dtype=bool),
+    )
+    return round_stats(points, codes, r_cols, s_cols, en_limit, doe)

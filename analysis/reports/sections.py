@@ -19,7 +19,7 @@ from reportlab.platypus import (
 )
 
 from analysis.consistency import statistic_text
-from analysis.reports import figures
+from analysis.reports import figures, standard
 from analysis.reports.data import (
     ConsistencyRow,
     Counts,
@@ -94,6 +94,12 @@ def at(x: float | None, places: int, *, sign: bool = False) -> str:
 
 def para(text: str, style: str = "body") -> Paragraph:
     return Paragraph(text, S[style])
+
+
+def intro(text: str) -> Paragraph:
+    """A sentence that introduces the table or figure right after it: a page never ends
+    with it (``render.keep_headings`` keeps it with the start of what follows)."""
+    return Paragraph(text, S["intro"])
 
 
 def table(
@@ -218,7 +224,7 @@ def own_performance(data: ReportData) -> list[Flowable]:
     flow: list[Flowable] = [para(f"Performance summary of participant {data.own_code}", "h1")]
     if mine is None:
         return [*flow, para("This report has no scored result of yours.")]
-    flow.append(para(_performance_text(data, mine)))
+    flow.append(intro(_performance_text(data, mine)))
     has_z = bool(mine.total.z.scored or mine.total.z.not_scored)
     head = ["", "n", "En S", "En Q", "En U", *(["z S", "z Q", "z U"] if has_z else [])]
     rows, bad = [head], []
@@ -304,8 +310,8 @@ def own_history(data: ReportData) -> list[Flowable]:
     head = ["Round", "Date", "Your code", "n", "Satisfactory En", "Satisfactory z"]
     rows = [head, *(_round_row(r) for r in found.rounds)]
     widths = [34 * mm, 22 * mm, 20 * mm, 12 * mm, 36 * mm, 36 * mm]
-    flow += [para(f"Your laboratory took part in {len(found.rounds)} rounds up to this one."),
-             table(rows, widths, ())]  # fmt: skip
+    flow += [intro(f"Your laboratory took part in {len(found.rounds)} rounds up to this one."),
+             table(rows, widths, ()), *standard.history_graph(data)]  # fmt: skip
     points = [["Comparable point", "Rounds", "RSZ", "RLP"]]
     for p in found.points:
         points.append([p.label, str(p.n_rounds), _combined(p.rsz, p.rsz_flag),
@@ -326,7 +332,7 @@ def participants_performance(data: ReportData) -> list[Flowable]:
     if not found:
         return [*flow, para("No participant has a scored result in this run.")]
     signals = sum(1 for lab in found if lab.total.en.unsatisfactory or lab.total.z.unsatisfactory)
-    flow.append(para(
+    flow.append(intro(
         f"{counted(len(found), 'participant')} with scored results; {signals} with at least "
         "one unsatisfactory En or z. Per participant: its number of results, the En and z "
         "(or z′) counts and its largest |En| and |z|."
@@ -411,7 +417,9 @@ def artefacts(data: ReportData) -> list[Flowable]:
         para("3 Artefacts", "h1"),
         table(rows, [18 * mm, 22 * mm, 34 * mm, 34 * mm, 34 * mm, 32 * mm]),
         Spacer(1, 3 * mm),
-        para(f"<b>Homogeneity and stability:</b> {escape(data.stability)}"),
+        (intro if data.stability_rows else para)(
+            f"<b>Homogeneity and stability:</b> {escape(data.stability)}"
+        ),
         *_stability_table(data),
     ]
 
@@ -441,7 +449,7 @@ def _stability_table(data: ReportData) -> list[Flowable]:
         if not r.stable:
             bad.append((n, 7))
     widths = [16 * mm, 44 * mm, 17 * mm, 17 * mm, 16 * mm, 11 * mm, 17 * mm, 13 * mm, 15 * mm]
-    return [Spacer(1, 2 * mm), table(rows, widths, (), bad)]
+    return [table(rows, widths, (), bad)]  # right below its intro (the stability text)
 
 
 CODES_LISTED = 1000  # above this many participants a participant report lists no codes
@@ -490,14 +498,14 @@ def assigned_values(data: ReportData) -> list[Flowable]:
     flow: list[Flowable] = [
         para("5 Assigned values", "h1"),
         para(f"<b>Metrological traceability:</b> {escape(data.traceability)}"),
-        para(
+        intro(
             f"<b>σ_pt:</b> {escape(data.sigma_pt_description)}. U(x_pt) = 2·u(x_pt) (k = 2), "
             "except a reference laboratory's U, taken as it reported it (its k in brackets)."
         ),
     ]
     approximate = [a for a in data.assigned if not a.exhaustive]
     if approximate:
-        flow.append(para(
+        flow.append(intro(
             f"<b>Warning:</b> {counted(len(approximate), 'point')} had too many results for the "
             "exact largest-consistent-subset search; their subset is the sequential approximation, "
             "which can be smaller than the largest consistent subset (marked “approximate”)."
@@ -529,7 +537,7 @@ def results_and_scores(data: ReportData) -> list[Flowable]:
     shown = data.results
     if is_large(data):
         shown = tuple(r for r in data.results if r.lab == data.own_code)
-        flow += [para(_LARGE_ROUND.format(n=data.round.n_results, own=data.own_code))]
+        flow += [intro(_LARGE_ROUND.format(n=data.round.n_results, own=data.own_code))]
         flow += _spread_table(data)
     by_device: dict[str, list[ResultRow]] = {}
     for r in shown:
@@ -700,7 +708,7 @@ def matrices(data: ReportData) -> list[Flowable]:
     flow: list[Flowable] = [para("7 Compatibility matrices", "h1")]
     if not data.matrices:
         return [*flow, para("No compatibility matrices were stored for this run.")]
-    flow.append(para(f"Pairwise En between levels; |En| > {data.en_limit:g} is incompatible."))
+    flow.append(intro(f"Pairwise En between levels; |En| > {data.en_limit:g} is incompatible."))
     for m in data.matrices:
         head = ["", "value", "U", *list(m.levels)]
         rows = [head]
@@ -743,8 +751,9 @@ def consistency(data: ReportData) -> list[Flowable]:
     if c is None:
         return [*flow, para("This analysis run stored no consistency tests (it was made before "
                             "they existed); a new run computes them.")]  # fmt: skip
+    lead = intro if c.rows else para  # introduces the findings' table, if there is one
     flow.append(
-        para(
+        lead(
             f"A test signals a straggler or an outlier at {c.n_signalling} of "
             f"{c.n_points} measurement points" + (": listed below." if c.rows else ".")
         )
@@ -752,7 +761,7 @@ def consistency(data: ReportData) -> list[Flowable]:
     if c.not_applicable:
         text = "; ".join(f"{escape(t)} at {n} point{'s' if n != 1 else ''} ({escape(why)})"
                          for t, why, n in c.not_applicable)  # fmt: skip
-        flow.append(para(f"<b>Not applicable:</b> {text}."))
+        flow.append(lead(f"<b>Not applicable:</b> {text}."))
     if c.rows:
         flow.append(_consistency_table(data, c.rows))
     return flow

@@ -25,6 +25,8 @@ STYLES: dict[str, ParagraphStyle] = {
     "h1": _style("h1", 13, bold=True, spaceBefore=10, spaceAfter=5),
     "h2": _style("h2", 10.5, bold=True, spaceBefore=8, spaceAfter=4),
     "body": _style("body", 9, spaceAfter=4),
+    # a body sentence that introduces the table or figure after it: kept with it
+    "intro": _style("intro", 9, spaceAfter=4),
     "small": _style("small", 7.5),
     "caption": _style("caption", 7.5, spaceBefore=2, spaceAfter=8, textColor="#495057"),
     "cell": _style("cell", 7.5),

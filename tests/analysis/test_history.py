@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import datetime as dt
 import re
+from html import escape
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ from django.test.utils import CaptureQueriesContext
 from django.utils import timezone
 
 from analysis.history import ComparableKey, comparable, lab_history, round_date
-from analysis.history_chart import history_chart
+from analysis.history_chart import CAPTION, history_chart
 from analysis.models import AnalysisRun, AssignedValue, Publication, Score
 from analysis.services import analysis_run_execute, analysis_run_start
 from labs.models import Membership, Participant, Result, Submission
@@ -317,6 +318,7 @@ def test_history_page_for_the_lab_members_only(client, labs, rounds):
     assert page.status_code == 200
     body = page.content.decode()
     assert "ACC-1, X, 5 Hz, linear vertical" in body and "<svg" in body
+    assert escape(CAPTION) in body  # the trend chart's caption, the one the report prints
     assert "<code>A1</code>" in body and "<code>Q9</code>" in body and not _shows(body, "Z5")
     assert not _shows(body, "B1") and not _shows(body, "B7") and "Lab B" not in body
     dashboard = client.get("/lab/").content.decode()
@@ -340,6 +342,7 @@ def test_coordinator_sees_the_history_of_the_rounds_they_coordinate(client, labs
     assert page.status_code == 200
     body = page.content.decode()
     assert "History across rounds" in body and "<code>Q9</code>" in body
+    assert escape(CAPTION) in body
     assert not _shows(body, "A1")  # R1 is another coordinator's round
     client.force_login(UserFactory.create(username="root", is_superuser=True))
     body = client.get("/coordinator/R3/performance/Z5/").content.decode()

@@ -75,13 +75,18 @@ def test_participant_report_opens_with_its_performance_summary(varied, tmp_path)
     assert "Your result for" not in words(pdftotext(pdf, tmp_path))
     # the graphs: its En and z over its points, per chart point the results and the sorted
     # En and z (z at points with a σ_pt), the largest |En| per lab, a Youden plot (a pair of
-    # its points where three participants have both), a frequency chart per device
+    # its points where three participants have both), a frequency chart per device; per
+    # chart point its kernel density and degrees of equivalence, and per device Mandel's h
+    # (and k where the round has repeats)
     data = report_data(run=run, participant=participant)
     with_z = [p for p in data.chart_points
               if not np.isnan(data.round.point_scores[p].z).all()]  # fmt: skip
     devices = {p.device for p in data.points}
     youden = int(youden_pair(data) is not None)
     expected = 2 + 2 * len(data.chart_points) + len(with_z) + 1 + youden + len(devices)
+    assert data.mandel is not None
+    mandel = sum(bool(np.isfinite(s).any()) for s in (data.mandel.graph.h, data.mandel.graph.k))
+    expected += 2 * len(data.chart_points) + mandel * len(devices)
     assert len(data.chart_points) == 4 and images_on(pdf, tmp_path) == expected
 
 
