@@ -242,14 +242,18 @@ def kit_prepare(run: AnalysisRun, loaded: LoadedRound) -> tuple[LoadedRound, Kit
     pilot_obs = dataclasses.replace(rep, value=rep.value + r_shift, u=np.hypot(rep.u, r_u))
     outputs = KitOutputs()
     codes = loaded.table.lab
+    # rows are loaded in point order (``load_round``): each point's rows are one slice
+    order = np.argsort(loaded.groups.index, kind="stable")
+    ends = np.cumsum(np.bincount(loaded.groups.index, minlength=len(loaded.points)))
+    repeats_of = _rows_by_group(rep.group)
     for g, point in enumerate(loaded.points):
-        rows = np.flatnonzero(loaded.groups.index == g)
+        rows = order[(ends[g - 1] if g else 0) : ends[g]]
         notes = _notes(rnd, drift, g, codes[rows], kit[rows], [several[i] for i in rows])
         fit = KitPointFit(run=run, measurement_point=point, drift=_drift_rows(rnd, drift, g),
                           notes=notes)  # fmt: skip
         linked = None
         if len(rnd.kits) >= 2:
-            take = rep.group == g
+            take = repeats_of.get(g, np.zeros(0, dtype=np.intp))
             linked = link_point(LinkInput(
                 method=point.assigned_value_method or run.comparison.assigned_value_method,
                 pilot=rnd.pilot, codes=codes[rows], kit=kit[rows],
@@ -273,6 +277,15 @@ def kit_prepare(run: AnalysisRun, loaded: LoadedRound) -> tuple[LoadedRound, Kit
                 u_link=linked.u_link[j] if linked else None,
             ))  # fmt: skip
     return adjusted, outputs
+
+
+def _rows_by_group(group: np.ndarray) -> dict[int, np.ndarray]:
+    """The indexes of each group's rows, one sort for all."""
+    if not group.size:
+        return {}
+    order = np.argsort(group, kind="stable")
+    labels, starts = np.unique(group[order], return_index=True)
+    return dict(zip(labels.tolist(), np.split(order, starts[1:]), strict=True))
 
 
 def _adjusted(loaded: LoadedRound, shift: np.ndarray, u_add: np.ndarray) -> LoadedRound:

@@ -121,3 +121,12 @@ def test_the_reports_say_what_was_done(linked):
     assert other.linked_d is not None and other.linked_u is not None
     table = mine[mine.find("Lab Device Point Kit") : mine.find("4 Participants")]
     assert "L2 " not in table and "L5 " in table
+
+
+def test_the_schema_names_the_added_keys():
+    schema = APIClient().get("/api/schema/?format=json").json()
+    keys = {"kit", "linked_d", "linked_expanded_uncertainty", "u_link", "drift_correction",
+            "u_drift"}  # fmt: skip
+    assert keys <= schema["components"]["schemas"]["Score"]["properties"].keys()
+    run_keys = schema["components"]["schemas"]["RunParameters"]["properties"]
+    assert "drift_treatment" in run_keys

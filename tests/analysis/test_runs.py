@@ -11,7 +11,7 @@ from analysis import services
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.services import analysis_run_execute, analysis_run_start
 from common.errors import StateConflict
-from labs.models import KitMeasurement, Participant
+from labs.models import Participant
 from proficiency.models import Comparison
 
 pytestmark = pytest.mark.django_db(transaction=True)
@@ -34,9 +34,6 @@ def outputs(run):
 
 
 def test_run_succeeds_and_matches_the_offline_tool(demo, tmp_path):
-    # the offline tool knows no kits: without the pilot's repeats no kit drifts, and the
-    # run's scores are those of the results table alone (docs/domain.md §13)
-    KitMeasurement.objects.filter(kit__comparison=demo).delete()
     run = analysis_run_start(comparison=demo, user=None)  # eager: runs on commit
     run.refresh_from_db()
     assert (run.status, run.progress, run.stage, run.error) == ("succeeded", 100, "done", "")

@@ -273,3 +273,60 @@ def test_hand_overs_logged_date_the_turn(run_of):
     ks = KitScore.objects.get(run=run, result__measurement_point=point,
                               result__submission__participant__code="L1")  # fmt: skip
     assert ks.drift_correction == pytest.approx(-b * (held - t_mean), rel=1e-12)
+
+
+def test_the_demo_run_links_both_loops_and_corrects_kit_b(run_of, demo_kit_drift):
+    from io import StringIO
+
+    from django.core.management import call_command
+
+    from proficiency.models import Comparison
+
+    call_command("load_demo", password="demo-password-1", stdout=StringIO())
+    demo = Comparison.objects.get(code="IMU-2024-DEMO")
+    run = run_of(demo)
+    fits = list(KitPointFit.objects.filter(run=run).select_related("measurement_point__device"))
+    linear = [f for f in fits if f.measurement_point.bench == "linear"]
+    assert len(linear) == 27 and {f.reference for f in linear} == {"pilot"}
+    assert all(f.unlinked == [] and f.dof == 6 for f in linear)
+    curvilinear = [f for f in fits if f.measurement_point.bench == "curvilinear"]
+    assert {f.reference for f in curvilinear} == {""}  # the pilot measures the linear bench only
+    assert all(f.notes[-1].startswith("not linked: the pilot") for f in curvilinear)
+    moved = KitScore.objects.filter(run=run).exclude(drift_correction=0)
+    assert {(k.kit.name, k.result.measurement_point.device.name) for k in moved} == {
+        ("Kit B", "MEMS 1")}  # fmt: skip
+    on_b = KitScore.objects.filter(
+        run=run,
+        kit__name="Kit B",
+        result__measurement_point__bench="linear",
+        result__measurement_point__device__name="MEMS 1",
+    )
+    # every result of Kit B's loop at MEMS 1's nine linear points (its laboratories, drawn
+    # by random code, hold four or five linear-bench results each)
+    assert moved.count() == on_b.count() in (36, 45)
+
+
+def test_chunks_store_the_same_kit_rows_as_one_task(run_of, settings):
+    r = make_round()
+    add_kit(r, "Kit A", r["labs"][:3])
+    add_kit(r, "Kit B", r["labs"][3:], drift=0.02)
+
+    def rows(run):
+        return sorted(
+            KitScore.objects.filter(run=run).values_list(
+                "result_id",
+                "kit_id",
+                "drift_correction",
+                "u_drift",
+                "linked_d",
+                "linked_u",
+                "u_link",
+            )
+        )
+
+    one = run_of(r["comparison"])
+    settings.ANALYSIS_CHUNK_RESULTS = 7  # one point per chunk
+    chunked = run_of(r["comparison"])
+    assert chunked.chunks_total == 2 and one.chunks_total == 1
+    assert rows(chunked) == rows(one) and len(rows(one)) == 14
+    assert scores(chunked) == scores(one)

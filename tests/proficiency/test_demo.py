@@ -232,7 +232,7 @@ def test_the_previous_round_is_published_by_its_job_and_makes_a_history(
     )
 
 
-def test_the_demo_round_circulated_two_kits_and_one_drifts():
+def test_the_demo_round_circulated_two_kits_and_one_drifts(demo_kit_drift):
     from labs.kits import circulation_status, kit_drift
     from labs.models import Handover
 
