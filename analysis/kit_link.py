@@ -79,7 +79,7 @@ def link_point(x: LinkInput) -> PointLink:
         who = (
             "the round has no pilot"
             if x.pilot is None
-            else f"the pilot {x.pilot} has no result here"
+            else f"the pilot {x.pilot} has no result on a kit here"
         )
         out.notes.append(f"not linked: {who}")
         out.unlinked = sorted(x.codes.tolist())
