@@ -120,7 +120,13 @@ def _solve(
     if reference == PILOT:
         pilot = int(np.flatnonzero(labs == int(np.flatnonzero(x.codes[rows] == x.pilot)[0]))[0])
     try:
-        linked = link(y, u, kit_idx, lab_idx, reference=reference, pilot=pilot, in_mean=in_mean)
+        with np.errstate(all="ignore"):  # too large a value: said below, never a warning
+            linked = link(y, u, kit_idx, lab_idx, reference=reference, pilot=pilot,
+                          in_mean=in_mean)  # fmt: skip
+        numbers = (linked.doe, linked.doe_covariance, linked.u_link, linked.kit_value)
+        if not all(np.isfinite(a).all() for a in numbers):
+            raise CoreInputError("the results there are too large or their uncertainties "
+                                 "too small to compute with")  # fmt: skip
     except (CoreInputError, np.linalg.LinAlgError) as exc:
         out.notes.append(f"not linked: {exc}")
         out.unlinked = sorted(x.codes.tolist())

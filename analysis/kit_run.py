@@ -233,6 +233,13 @@ def kit_prepare(run: AnalysisRun, loaded: LoadedRound) -> tuple[LoadedRound, Kit
     rnd = _round(run)
     if rnd is None:
         return loaded, None
+    # an overflowing result is named by the run's own check of its numbers
+    # (``analysis.services._compute_checked``), never stopped here by a warning
+    with np.errstate(all="ignore"):
+        return _prepare(run, rnd, loaded)
+
+
+def _prepare(run: AnalysisRun, rnd: Round, loaded: LoadedRound) -> tuple[LoadedRound, KitOutputs]:
     rep = _repeats(rnd, loaded)
     drift = _drift(rep)
     kit, day, several = _result_turns(rnd, loaded)

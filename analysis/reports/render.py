@@ -24,7 +24,7 @@ from reportlab.platypus import Flowable, PageBreak, Paragraph, SimpleDocTemplate
 
 from analysis.reports import sections
 from analysis.reports.data import ReportData
-from analysis.reports.kits import kits_section
+from analysis.reports.kit_section import kits_section
 from analysis.reports.styles import BOLD, FONT, STYLES
 
 rl_config.invariant = 1

@@ -151,7 +151,8 @@ def test_assembly_takes_a_few_queries(analysed, django_assert_max_num_queries):
     participant = analysed.comparison.participants.first()
     # 13: the consistency tests take two (the reasons at every point, the findings where a
     # test signals); 4 more: the laboratory's history (analysis.history: participations,
-    # publications, the latest runs of rounds without one, scores)
-    with django_assert_max_num_queries(13 + 4):
+    # publications, the latest runs of rounds without one, scores); 2 more: the demo's kits,
+    # their fits and every result's kit row (docs/domain.md §13, §14)
+    with django_assert_max_num_queries(13 + 4 + 2):
         data = report_data(run=analysed, participant=participant)
     assert len(data.scores) == 891 and len(data.points) == 81 and data.own_code
