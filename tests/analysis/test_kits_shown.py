@@ -130,3 +130,13 @@ def test_the_schema_names_the_added_keys():
     assert keys <= schema["components"]["schemas"]["Score"]["properties"].keys()
     run_keys = schema["components"]["schemas"]["RunParameters"]["properties"]
     assert "drift_treatment" in run_keys
+
+
+def test_chi2_is_written_to_three_significant_digits(client, linked):
+    from analysis.models import KitPointFit
+
+    client.force_login(linked["coordinator"])
+    fit = KitPointFit.objects.get(run=linked["run"], measurement_point=linked["points"][0])
+    assert fit.chi2 is not None and fit.dof == 6
+    html = client.get(f"/coordinator/{linked['comparison'].code}/results/kits/").content.decode()
+    assert f'<td class="num">{numbers.significant(fit.chi2, 3)}</td>' in html
