@@ -551,3 +551,76 @@ class RoundArchive(ClaimedJob):
     def __str__(self) -> str:
         who = self.participant.code if self.participant_id and self.participant else "coordinators"
         return f"Archive of run {self.run_id} for {who} ({self.status})"
+
+
+class KitPointFit(models.Model):
+    """Per run and measurement point of a round with kits (docs/domain.md §13, §14): the
+    drift judged on each kit's pilot repeats, and for a round of two kits or more the
+    least-squares link of every participant to one reference, with its χ².  Written with
+    the chunk's scores (``analysis.kit_run``)."""
+
+    run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="kit_points")
+    measurement_point = models.ForeignKey(
+        MeasurementPoint, on_delete=models.CASCADE, related_name="kit_fits"
+    )
+    reference = models.CharField(
+        max_length=16, blank=True, help_text="pilot or weighted_mean; empty: not linked here"
+    )
+    chi2 = models.FloatField(null=True, blank=True)
+    dof = models.IntegerField(null=True, blank=True)
+    kit_values = models.JSONField(default=list, blank=True, help_text="kit, value, u per kit")
+    drift = models.JSONField(
+        default=list, blank=True,
+        help_text="per kit: n, model, slope and u(slope) per day, p, t̄, value, u (§13)",
+    )  # fmt: skip
+    unlinked = models.JSONField(
+        default=list, blank=True, help_text="codes of the participants not linked to it"
+    )
+    notes = models.JSONField(default=list, blank=True, help_text="what the run did and why")
+
+    class Meta:
+        ordering = ["run", "measurement_point"]
+        constraints = [
+            models.UniqueConstraint(fields=["run", "measurement_point"], name="kit_fit_once"),
+        ]
+
+    def __str__(self) -> str:
+        return f"kits at {self.measurement_point_id} (run {self.run_id})"
+
+
+class KitScore(models.Model):
+    """One result of a round with kits, in one run: the kit it was measured on, its date,
+    the drift correction or u_drift applied to it (§13), and its degree of equivalence
+    against the linked reference (§14; null where the round has one kit or the
+    participant is not linked)."""
+
+    run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="kit_scores")
+    result = models.ForeignKey(Result, on_delete=models.CASCADE, related_name="kit_scores")
+    kit = models.ForeignKey(
+        "proficiency.Kit", null=True, blank=True, on_delete=models.SET_NULL,
+        related_name="kit_scores",
+    )  # fmt: skip
+    measured_on = models.DateField(null=True, blank=True, help_text="midpoint of its turn")
+    drift_correction = models.FloatField(
+        default=0.0, help_text="added to the result: −b·(t − t̄) where corrected, else 0"
+    )
+    u_drift = models.FloatField(
+        default=0.0, help_text="standard uncertainty added: |t − t̄|·u(b) or u_stab(t)"
+    )
+    linked_d = models.FloatField(null=True, blank=True)
+    linked_u = models.FloatField(null=True, blank=True, help_text="u(d)")
+    u_link = models.FloatField(null=True, blank=True)
+
+    class Meta:
+        ordering = ["run", "result"]
+        constraints = [
+            models.UniqueConstraint(fields=["run", "result"], name="kit_score_once"),
+        ]
+
+    def __str__(self) -> str:
+        return f"kit score of {self.result_id} (run {self.run_id})"
+
+    @property
+    def linked_expanded_uncertainty(self) -> float | None:
+        """U(d) = 2·u(d) (docs/domain.md §6)."""
+        return None if self.linked_u is None else 2.0 * self.linked_u

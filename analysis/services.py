@@ -57,6 +57,7 @@ from analysis.bulk import planner_stats_refresh
 from analysis.core.groups import CoreInputError
 from analysis.core.pooled import Moments, compatibility_matrices_pooled, moments
 from analysis.core.robust import DegenerateScaleError
+from analysis.kit_run import KitOutputs, kit_outputs_delete, kit_outputs_store, kit_prepare
 from analysis.models import AnalysisChunk, AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.outputs import (
     BATCH,
@@ -156,6 +157,7 @@ def _parameters(c: Comparison) -> dict[str, Any]:
         "sigma_pt_value": c.sigma_pt_value,
         "en_limit": c.en_limit,
         "compare": list(STORED_FACTORS),
+        "drift_treatment": c.drift_treatment,
     }
 
 
@@ -270,6 +272,7 @@ def _plan(run: AnalysisRun) -> int:
 def _delete_outputs(run_id: int) -> None:
     for model in (AssignedValue, Score, CompatibilityMatrix):
         model.objects.filter(run_id=run_id).delete()
+    kit_outputs_delete(run_id)
 
 
 def _fail(run_id: int, message: str) -> str:
@@ -351,8 +354,9 @@ def analysis_chunk_execute(
             if run.chunks_total == 1:
                 _stage(run_id, "loading results", 10)
             loaded = load_round(run.comparison, chunk.first_point_id, chunk.last_point_id)
+            loaded, kits = kit_prepare(run, loaded)  # drift handled, kits linked (§13, §14)
             analysis, m = _compute_checked(run, loaded)
-            stored, last = _save_chunk(run, chunk, token, loaded, analysis, m, t0)
+            stored, last = _save_chunk(run, chunk, token, loaded, analysis, m, t0, kits)
         except (ApplicationError, CoreInputError) as exc:
             return _fail(run_id, str(getattr(exc, "message", exc)))
         except Exception as exc:  # any other error is shown too, never a silent stuck run
@@ -385,7 +389,7 @@ def peak_rss_kb() -> int:
 @transaction.atomic
 def _save_chunk(
     run: AnalysisRun, chunk: AnalysisChunk, token: str, loaded: LoadedRound, a: Analysis,
-    m: Moments, t0: float,
+    m: Moments, t0: float, kits: KitOutputs | None = None,
 ) -> tuple[bool, bool]:  # fmt: skip
     """Store one chunk's outputs, mark it done and count it on the run, atomically, if
     the run still runs and the chunk's claim is still ``token``: whether it stored them,
@@ -405,6 +409,7 @@ def _save_chunk(
         Score.objects.filter(run=run, **{f"result__{k}": v for k, v in points.items()}).delete()
     AssignedValue.objects.bulk_create(assigned_rows(run, loaded, a), batch_size=BATCH)
     write_scores(run.pk, loaded, a)
+    kit_outputs_store(run, chunk.first_point_id, chunk.last_point_id, kits)
     # Score.result has no database-level foreign key (see the model): one query per chunk
     # checks that every result scored still exists, instead of one locking check per row.
     if not _results_still_there(run, loaded, points):

@@ -4,7 +4,7 @@ participants (``lab_*`` names under ``/results/``)."""
 
 from django.urls import path
 
-from analysis import archive_views, chart_views, consistency_views, history_views, views
+from analysis import archive_views, chart_views, consistency_views, history_views, kit_views, views
 
 C = "coordinator/<slug:code>/"
 P = "results/<slug:code>/"
@@ -22,6 +22,7 @@ urlpatterns = [
     path(C + "publish/", views.publish, name="publish"),
     path(C + "publication/<int:pk>/", views.publication, name="publication"),
     path(C + "performance/", views.performance_page, COORD, name="performance"),
+    path(C + "results/kits/", kit_views.kits_page, COORD, name="results_kits"),
     path(
         C + "performance/<slug:lab>/",
         views.participant_performance,

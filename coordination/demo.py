@@ -254,7 +254,8 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
 
 
 #: the demo's two kits: (name, serial prefix, drift of the pilot's MEMS 1 repeats per day)
-KITS = (("Kit A", "A", 0.0), ("Kit B", "B", 0.012))
+DEMO_KITS = (("Kit A", "A", 0.0), ("Kit B", "B", 0.012))
+KITS = DEMO_KITS  # the tests' demo keeps its kits still (tests/conftest.py)
 
 
 def _kits(comparison: Comparison) -> None:
@@ -268,8 +269,8 @@ def _kits(comparison: Comparison) -> None:
     pilot = next(p for p in participants if p.laboratory.name == LINEAR_LAB[0])
     others = [p for p in participants if p != pilot]
     devices = list(comparison.devices.order_by("name"))
-    points = list(comparison.measurement_points.filter(
-        device=devices[0], bench="linear").select_related("device"))  # fmt: skip
+    points = list(comparison.measurement_points.filter(bench="linear")
+                  .select_related("device").order_by("pk"))  # fmt: skip
     for index, (name, prefix, drift) in enumerate(KITS):
         serials = {d: f"{prefix}-{i:03d}" for i, d in enumerate(devices, 1)}
         kit = kit_create(comparison_id=comparison.pk, name=name, serials=serials)
@@ -286,7 +287,8 @@ def _kits(comparison: Comparison) -> None:
         plan.append(SlotPlan(pilot, day, day + dt.timedelta(days=4)))
         slots = circulation_set(kit=kit, plan=plan)
         _circulate(kit, slots, damaged=index == 1)
-        _pilot_repeats(kit, points, [s for s in slots if s.participant_id == pilot.pk], drift)
+        _pilot_repeats(kit, points, [s for s in slots if s.participant_id == pilot.pk], drift,
+                       _own_values(pilot))  # fmt: skip
 
 
 def _circulate(kit: Kit, slots: list[KitSlot], *, damaged: bool) -> None:
@@ -310,18 +312,28 @@ def _circulate(kit: Kit, slots: list[KitSlot], *, damaged: bool) -> None:
                      at=noon(slots[-1].ends_on + dt.timedelta(days=2)))  # fmt: skip
 
 
+def _own_values(participant: Participant) -> dict[int, float]:
+    """The participant's accepted results by point id."""
+    rows = Result.objects.filter(submission__participant=participant,
+                                 submission__status=Submission.Status.ACCEPTED)  # fmt: skip
+    return dict(rows.values_list("measurement_point_id", "value"))
+
+
 def _pilot_repeats(kit: Kit, points: list[MeasurementPoint], slots: list[KitSlot],
-                   drift: float) -> None:  # fmt: skip
-    """The pilot's measurement of each point in each of its slots: the nominal value with
-    a small scatter, plus ``drift`` per day since the first slot (Kit B's MEMS 1 ages)."""
+                   drift: float, own: dict[int, float]) -> None:  # fmt: skip
+    """The pilot's measurement of each linear-bench point in each of its slots: its own
+    result there (the nominal value where it has none) with a small scatter, plus, on MEMS
+    1, ``drift`` per day since the first slot (Kit B's MEMS 1 ages)."""
     rng = np.random.default_rng(zlib.crc32(kit.name.encode()))
     first = slots[0].starts_on
     lines = ["device,axis,frequency_hz,bench,direction,amplitude_m_s2,measured_on,"
              "sensitivity,expanded_uncertainty"]  # fmt: skip
     for p in points:
         amplitude = "" if p.amplitude_m_s2 is None else repr(p.amplitude_m_s2)
+        rate = drift if p.device.name == "MEMS 1" else 0.0
         for slot in slots:
-            value = NOMINAL + 1.5 + drift * (slot.starts_on - first).days + rng.normal(0, 0.03)
+            base = own.get(p.pk, NOMINAL + 1.5)
+            value = base + rate * (slot.starts_on - first).days + rng.normal(0, 0.03)
             lines.append(f"{p.device.name},{p.axis},{p.frequency_hz!r},{p.bench},{p.direction},"
                          f"{amplitude},{slot.starts_on},{value:.4f},0.08")  # fmt: skip
     kit_measurements_replace(kit=kit, text="\n".join(lines))

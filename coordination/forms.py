@@ -21,6 +21,7 @@ from proficiency.models import (
     Comparison,
     Device,
     Direction,
+    DriftTreatment,
     MeasurementPoint,
 )
 from proficiency.selectors import call_levels
@@ -43,6 +44,7 @@ class ComparisonForm(BootstrapMixin, forms.ModelForm):
             "sigma_pt_mode",
             "sigma_pt_value",
             "en_limit",
+            "drift_treatment",
             "reminder_days",
             "enrolment_open",
             "enrolment_closes",
@@ -61,9 +63,19 @@ class ComparisonForm(BootstrapMixin, forms.ModelForm):
             "sigma_pt_mode": "σ_pt mode",
             "sigma_pt_value": "σ_pt value",
             "en_limit": "En limit",
+            "drift_treatment": "A drifting kit",
             "enrolment_open": "Open for applications",
             "enrolment_closes": "Enrolment closes",
         }
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        # a form posted without it (an older page, a script) keeps the round's setting
+        self.fields["drift_treatment"].required = False
+
+    def clean_drift_treatment(self) -> str:
+        chosen = self.cleaned_data.get("drift_treatment")
+        return chosen or self.instance.drift_treatment or DriftTreatment.CORRECT
 
     def clean(self) -> dict[str, Any]:
         data = cast(dict[str, Any], super().clean())  # ModelForm.clean: its cleaned_data

@@ -53,6 +53,13 @@ class SigmaPtMode(models.TextChoices):
     ROBUST = "robust", "Robust s* of the round"
 
 
+class DriftTreatment(models.TextChoices):
+    """What a run does where the pilot's repeats show a kit drifting (docs/domain.md §13)."""
+
+    CORRECT = "correct", "Correct the reference to each participant's date"
+    U_STAB = "u_stab", "Keep the constant value and add u_stab for each participant"
+
+
 class Distribution(models.TextChoices):
     RECTANGULAR = "rectangular", "Rectangular"
     NORMAL = "normal", "Normal (tolerance is an expanded uncertainty, k = 2)"
@@ -130,6 +137,11 @@ class Comparison(models.Model):
         null=True, blank=True, help_text="Absolute value, or percent for the relative mode."
     )
     en_limit = models.FloatField(default=1.0)
+    drift_treatment = models.CharField(
+        max_length=8, choices=DriftTreatment.choices, default=DriftTreatment.CORRECT,
+        help_text="Where the pilot's repeats show a kit drifting (a significant slope): correct "
+        "for it, or add its u_stab at each participant's date (docs/domain.md §13).",
+    )  # fmt: skip
     reminder_days = models.CharField(
         max_length=60,
         blank=True,

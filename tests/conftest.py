@@ -58,6 +58,24 @@ def demo_without_earlier_round(request, monkeypatch):
     monkeypatch.setattr("coordination.demo.EARLIER_ROUND", False)
 
 
+@pytest.fixture(autouse=True)
+def demo_kits_without_drift(request, monkeypatch):
+    """The demo's Kit B does not drift: the pilot's repeats of both kits only scatter, so no
+    slope is significant and a run of the demo scores as the offline tool, which knows no
+    kits (docs/domain.md §13); a test of the drift asks for ``demo_kit_drift``."""
+    if not request.config.pluginmanager.hasplugin("django"):
+        return
+    monkeypatch.setattr("coordination.demo.KITS", (("Kit A", "A", 0.0), ("Kit B", "B", 0.0)))
+
+
+@pytest.fixture
+def demo_kit_drift(monkeypatch):
+    """``load_demo`` makes Kit B's MEMS 1 drift, as ``make run`` does."""
+    from coordination import demo
+
+    monkeypatch.setattr("coordination.demo.KITS", demo.DEMO_KITS)
+
+
 @pytest.fixture
 def demo_earlier_round(monkeypatch):
     """``load_demo`` makes the earlier round too, as ``make run`` does."""

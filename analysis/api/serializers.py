@@ -9,7 +9,7 @@ from rest_framework import serializers
 from analysis.models import AnalysisRun, Publication, Score
 from analysis.selectors import z_used_name
 from labs.models import Submission
-from proficiency.models import AssignedValueMethod, Comparison, SigmaPtMode
+from proficiency.models import AssignedValueMethod, Comparison, DriftTreatment, SigmaPtMode
 
 
 class RunParameters(serializers.Serializer):
@@ -27,6 +27,10 @@ class RunParameters(serializers.Serializer):
         required=False,
         help_text="factors of the stored compatibility matrices",
     )
+    drift_treatment = serializers.ChoiceField(
+        choices=DriftTreatment.choices, required=False,
+        help_text="what a drifting kit did to the scores (docs/domain.md §13)",
+    )  # fmt: skip
 
 
 @extend_schema_field(RunParameters)
@@ -61,6 +65,41 @@ class ScoreSerializer(serializers.ModelSerializer):
         "0.3 σ_pt, ISO 13528 9.5), or null without σ_pt"
     )
 
+    # a round with kits (docs/domain.md §13, §14); null elsewhere
+    kit = serializers.CharField(
+        read_only=True,
+        allow_null=True,
+        default=None,
+        help_text="the kit the result was measured on",
+    )
+    linked_d = serializers.FloatField(
+        read_only=True,
+        allow_null=True,
+        default=None,
+        help_text="d against the one reference across the kits",
+    )
+    linked_expanded_uncertainty = serializers.FloatField(
+        read_only=True, allow_null=True, default=None, help_text="U(d) = 2·u(d)"
+    )
+    u_link = serializers.FloatField(
+        read_only=True,
+        allow_null=True,
+        default=None,
+        help_text="the part of u(d) that is not the lab's own",
+    )
+    drift_correction = serializers.FloatField(
+        read_only=True,
+        allow_null=True,
+        default=None,
+        help_text="added to the value for a drifting kit: −b·(t − t̄); 0 where none",
+    )
+    u_drift = serializers.FloatField(
+        read_only=True,
+        allow_null=True,
+        default=None,
+        help_text="standard uncertainty added for a drifting kit: |t − t̄|·u(b) or u_stab(t)",
+    )
+
     def get_z_used(self, score: Score) -> str | None:
         return z_used_name(score)
 
@@ -70,6 +109,8 @@ class ScoreSerializer(serializers.ModelSerializer):
             "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
             "expanded_uncertainty", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag",
             "z_flag", "correlation_applied", "correlation_failed", "in_assigned_value", "z_used",
+            "kit", "linked_d", "linked_expanded_uncertainty", "u_link", "drift_correction",
+            "u_drift",
         ]  # fmt: skip
 
 

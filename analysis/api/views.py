@@ -18,6 +18,7 @@ from rest_framework.response import Response
 
 from analysis.api import serializers as s
 from analysis.core.groups import CoreInputError
+from analysis.kit_results import with_kit_scores
 from analysis.models import AnalysisRun, Publication, Score
 from analysis.pipeline import matrix_record
 from analysis.publication import publication_start
@@ -131,7 +132,7 @@ class ScoreList(ApiView, generics.ListAPIView):
         if not access.is_coordinator:
             assert access.participant is not None
             filters["lab"] = access.participant.code
-        return run_scores(shown_run(access), filters)
+        return with_kit_scores(run_scores(shown_run(access), filters))
 
 
 class CompatibilityQuery(serializers.Serializer):

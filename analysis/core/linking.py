@@ -13,7 +13,9 @@ model fixes differences only, so one linear constraint names the reference:
 * ``"pilot"``: b_pilot = 0 — degrees of equivalence against the pilot (a reference
   laboratory's assigned value, per kit, linked through the pilot's measurements);
 * ``"weighted_mean"``: Σ_j w_j b_j = 0 over the laboratories, w_j = 1/u_j² with u_j the
-  root mean square of laboratory j's u — a consensus reference across every loop.
+  root mean square of laboratory j's u — a consensus reference across every loop.  A
+  series that is not a laboratory's result (the pilot's repeat measurements of the kits,
+  a transfer series with its own free offset) is left out of the mean by ``in_mean``.
 
 θ = (K, b) minimises Σ (y − Aθ)²/u² under Cθ = 0; it and its covariance come from the
 bordered (KKT) system [[AᵀWA, Cᵀ], [C, 0]]: the top-left block of its inverse is cov(θ).
@@ -67,6 +69,16 @@ class Linked:
             return self.doe_covariance / np.outer(s, s)
 
 
+def lab_components(kit: ArrayLike, lab: ArrayLike) -> IntArray:
+    """Per laboratory (0 … max(lab)), a label of its connected component in the graph of
+    laboratories and kits joined by observations: two laboratories share a label when
+    some chain of kits and laboratories links them."""
+    kk, jj = (np.asarray(a, dtype=np.intp) for a in (kit, lab))
+    if not kk.size:
+        return np.zeros(0, dtype=np.intp)
+    return _components(int(kk.max()) + 1, int(jj.max()) + 1, kk, jj)
+
+
 def _components(n_kits: int, n_labs: int, kit: IntArray, lab: IntArray) -> IntArray:
     """Connected component of every laboratory in the lab–kit graph (union-find)."""
     parent = np.arange(n_kits + n_labs)
@@ -92,13 +104,16 @@ def link(
     *,
     reference: str = PILOT,
     pilot: int = 0,
+    in_mean: ArrayLike | None = None,
 ) -> Linked:
     """Degrees of equivalence of every laboratory against one reference across kits and
     loops, at one measurement point (see the module docstring).
 
     ``y``, ``u``: each observation's value and standard uncertainty; ``kit``, ``lab``: its
     kit and laboratory index (0-based; every index up to the largest is used);
-    ``reference``: ``"pilot"`` (laboratory ``pilot`` has d = 0) or ``"weighted_mean"``."""
+    ``reference``: ``"pilot"`` (laboratory ``pilot`` has d = 0) or ``"weighted_mean"``;
+    ``in_mean``: per laboratory, whether it enters the weighted-mean reference (default:
+    all)."""
     yy, uu = (np.asarray(a, dtype=np.float64) for a in (y, u))
     kk, jj = (np.asarray(a, dtype=np.intp) for a in (kit, lab))
     if not (yy.shape == uu.shape == kk.shape == jj.shape) or yy.ndim != 1 or not yy.size:
@@ -113,12 +128,15 @@ def link(
         if missing.size:
             raise CoreInputError(f"{name} {int(missing[0])} has no observation")
     comp = _components(n_kits, n_labs, kk, jj)
+    mean = np.ones(n_labs, dtype=bool) if in_mean is None else np.asarray(in_mean, dtype=bool)
+    if mean.shape != (n_labs,) or not mean.any():
+        raise CoreInputError("in_mean needs one flag per laboratory, at least one set")
     if reference == PILOT:
         if not 0 <= pilot < n_labs:
             raise CoreInputError(f"the pilot {pilot} is not one of the laboratories")
         apart = np.flatnonzero(comp != comp[pilot])
     elif reference == WEIGHTED_MEAN:
-        apart = np.flatnonzero(comp != comp[0])
+        apart = np.flatnonzero(comp != comp[int(np.flatnonzero(mean)[0])])
     else:
         raise CoreInputError(f"unknown reference {reference!r} (pilot or weighted_mean)")
     if apart.size:
@@ -137,7 +155,7 @@ def link(
         constraint[n_kits + pilot] = 1.0
     else:
         u_rms = np.sqrt(np.bincount(jj, weights=uu**2) / np.bincount(jj))
-        constraint[n_kits:] = 1.0 / u_rms**2
+        constraint[n_kits:] = np.where(mean, 1.0 / u_rms**2, 0.0)
     kkt = np.zeros((m + 1, m + 1))
     kkt[:m, :m] = a.T @ (w[:, None] * a)
     kkt[:m, m] = kkt[m, :m] = constraint

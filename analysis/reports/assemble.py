@@ -27,6 +27,7 @@ from analysis.reports.data import (
     DeviceInfo,
     HistoryPoint,
     HistoryRound,
+    KitSection,
     LabSummary,
     MandelRound,
     MatrixData,
@@ -40,6 +41,7 @@ from analysis.reports.data import (
     ScoreRow,
     StabilityRow,
 )
+from analysis.reports.kits import for_reader, kit_section_of_run
 from analysis.reports.rounds import round_stats, stats_of_rows
 from analysis.reports.sections import FULL_TABLE_ROWS
 from analysis.reports.stability import stability_rows
@@ -126,6 +128,7 @@ class RunContext:
     rows: tuple[tuple[ResultRow, ...], tuple[ScoreRow, ...]] | None
     consistency: ConsistencySummary | None = None
     mandel: MandelRound | None = None
+    kits: KitSection | None = None  # a round with kits: every participant's (§13, §14)
 
 
 _CONTEXTS: OrderedDict[tuple[object, ...], RunContext] = OrderedDict()
@@ -183,6 +186,7 @@ def _build_context(run: AnalysisRun, key: tuple[object, ...]) -> RunContext:
         rows=rows,
         consistency=consistency_summary(run, index),
         mandel=_mandel(run),
+        kits=kit_section_of_run(run, index),
     )
 
 
@@ -445,6 +449,7 @@ def report_data(
         traceability=_traceability(comparison),
         stability=_stability(context.stability_rows),
         stability_rows=context.stability_rows,
+        kits=for_reader(context.kits, participant.code if participant else None),
         comments=comments or comparison.report_comments,
         conclusions=comparison.report_conclusions,
         own_code=participant.code if participant else None,

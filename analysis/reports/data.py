@@ -153,6 +153,48 @@ class LabSummary:
 
 
 @dataclass(frozen=True)
+class KitLink:
+    """One of a participant's results in a round with kits (docs/domain.md §13, §14): its
+    point (index), kit, drift correction and u_drift, and d, U(d), u_link (None: not
+    linked, or a round of one kit)."""
+
+    code: str
+    point: int
+    kit: str
+    correction: float
+    u_drift: float
+    d: float | None
+    big_u: float | None
+    u_link: float | None
+
+
+@dataclass(frozen=True)
+class KitDrift:
+    """One kit at one point as judged by the pilot's repeats (§13)."""
+
+    point: int
+    kit: str
+    n: int
+    model: str
+    slope: float
+    u_slope: float
+    p_value: float | None
+
+
+@dataclass(frozen=True)
+class KitSection:
+    """The "Linking and drift" part of a report: what was done, the drift judged per kit
+    and point, and the links — every participant's by code in the summary, the reader's
+    own in a participant report."""
+
+    text: str
+    drift: tuple[KitDrift, ...]
+    notes: tuple[str, ...]
+    links: tuple[KitLink, ...]
+    linked_round: bool
+
+
+@dataclass(frozen=True)
 class StabilityRow:
     """The pilot's mean before and after circulation at one point (docs/domain.md §7):
     Δ = after − before, En of the two, the 0.3·σ_pt limit (None without σ_pt), the verdict
@@ -372,6 +414,8 @@ class ReportData:
     traceability: str = ""
     stability: str = ""
     stability_rows: tuple[StabilityRow, ...] = ()
+    # a round with kits: its drift and link (docs/domain.md §13, §14); None without kits
+    kits: KitSection | None = None
     comments: str = ""
     conclusions: str = ""
     own_code: str | None = None

@@ -24,6 +24,7 @@ from reportlab.platypus import Flowable, PageBreak, Paragraph, SimpleDocTemplate
 
 from analysis.reports import sections
 from analysis.reports.data import ReportData
+from analysis.reports.kit_section import kits_section
 from analysis.reports.styles import BOLD, FONT, STYLES
 
 rl_config.invariant = 1
@@ -178,6 +179,7 @@ def story(data: ReportData) -> list[Flowable]:
     flow += sections.confidentiality(data)
     flow += sections.design(data)
     flow += sections.artefacts(data)
+    flow += kits_section(data)
     flow += sections.participants(data)
     flow += sections.assigned_values(data)
     flow += sections.results_and_scores(data)

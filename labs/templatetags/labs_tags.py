@@ -154,6 +154,12 @@ def signed(value: float | None, digits: int = 4) -> str:
 
 
 @register.filter
+def statistic(value: float | None, digits: int = 3) -> str:
+    """A test statistic (χ², a Birge ratio) to ``digits`` significant digits (§3.1)."""
+    return numbers.significant(value, int(digits))
+
+
+@register.filter
 def entered_u(result: Any) -> str:
     """A result's U as the laboratory wrote it: ``1.2 % (5.0 mV/(m/s²))`` for a relative U
     (the absolute value in brackets, rounded), else the absolute U rounded."""

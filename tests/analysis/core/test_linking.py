@@ -141,3 +141,30 @@ def test_an_unlinked_laboratory_is_named():
 def test_bad_input_says_what(kwargs, message):
     with pytest.raises(CoreInputError, match=message):
         link(**kwargs)
+
+
+def test_a_transfer_series_left_out_of_the_weighted_mean_equals_a_dense_solve():
+    """The pilot's repeats of two kits as their own series (lab 4, a free offset, out of the
+    mean): Σ w_j b_j = 0 over labs 0–3 only. Dense check: lab 3's bias substituted as
+    −Σ_{j<3} w_j b_j / w_3, lab 4's column free, solved by lstsq."""
+    y = np.array([418.2, 419.1, 421.4, 420.9, 419.0, 419.1, 421.9, 422.0])
+    u = np.array([0.3, 0.5, 0.4, 0.6, 0.05, 0.05, 0.05, 0.05])
+    kit, lab = np.array([0, 0, 1, 1, 0, 0, 1, 1]), np.array([0, 1, 2, 3, 4, 4, 4, 4])
+    in_mean = np.array([True, True, True, True, False])
+    linked = link(y, u, kit, lab, reference="weighted_mean", in_mean=in_mean)
+    n_k, m = 2, 7
+    a = np.zeros((y.size, m))
+    a[np.arange(y.size), kit] = 1
+    a[np.arange(y.size), n_k + lab] = 1
+    w = 1 / u[:4] ** 2
+    t = np.delete(np.eye(m), n_k + 3, axis=1)
+    t[n_k + 3, n_k : n_k + 3] = -w[:3] / w[3]
+    ar = (a @ t) / u[:, None]
+    theta = t @ np.linalg.lstsq(ar, y / u, rcond=None)[0]
+    cov = t @ np.linalg.inv(ar.T @ ar) @ t.T
+    assert linked.doe[:4] == pytest.approx(theta[n_k : n_k + 4], abs=1e-10)
+    assert linked.doe_covariance[:4, :4] == pytest.approx(cov[n_k : n_k + 4, n_k : n_k + 4],
+                                                          abs=1e-12)  # fmt: skip
+    assert float(np.sum(w * linked.doe[:4])) == pytest.approx(0.0, abs=1e-9)
+    # the kits differ by the transfer's 2.9, not by the labs' 2.5
+    assert linked.kit_value[1] - linked.kit_value[0] == pytest.approx(2.9, abs=0.05)

@@ -153,7 +153,8 @@ def test_assembly_takes_a_few_queries(analysed, django_assert_max_num_queries):
     # test signals); 4 more: the laboratory's history (analysis.history: participations,
     # publications, the latest runs of rounds without one, scores); 2 more, once per run:
     # Mandel's h and k as the web reads them (analysis.graph_data.mandel_data: the run's
-    # points, every result's mean and repeat standard deviation)
-    with django_assert_max_num_queries(13 + 4 + 2):
+    # points, every result's mean and repeat standard deviation); 2 more: the demo's kits,
+    # their fits and every result's kit row (docs/domain.md §13, §14)
+    with django_assert_max_num_queries(13 + 4 + 2 + 2):
         data = report_data(run=analysed, participant=participant)
     assert len(data.scores) == 891 and len(data.points) == 81 and data.own_code

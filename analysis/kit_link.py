@@ -1,0 +1,144 @@
+"""One measurement point of a round with several kits linked to one reference
+(docs/domain.md §14, ``analysis.core.linking``), from the results of a run's chunk.
+
+Observations: every participant's result on its kit (drift handled as the round says),
+and the pilot's repeat measurements of every kit.  The repeats enter as a *transfer
+series* with an offset of its own, left out of any weighted mean: they carry the pilot's
+reproducibility (the u of a change over time), so they fix how the kits differ, never the
+level; the level comes from the pilot's result with its full uncertainty (pilot
+reference) or from the laboratories' weighted mean.  With one kit the transfer offset
+takes up the repeats entirely and the pilot reference gives today's reference-laboratory
+numbers.
+
+The reference follows the round's assigned-value method at the point: ``reference`` and
+``nominal`` → the pilot (b_pilot = 0; a nominal value is no laboratory, and the pilot is
+the one that measured every kit), every consensus method → the weighted mean of the
+laboratories.  A participant outside the reference's connected part of the lab–kit graph
+is named, not scored.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from analysis.core.groups import CoreInputError
+from analysis.core.linking import PILOT, WEIGHTED_MEAN, lab_components, link
+from proficiency.models import AssignedValueMethod
+
+_PILOT_METHODS = {AssignedValueMethod.REFERENCE, AssignedValueMethod.NOMINAL}
+
+
+@dataclass(frozen=True)
+class LinkInput:
+    """One point: the results (codes, kit index or −1, value, u) and the pilot's repeats."""
+
+    method: str
+    pilot: str | None
+    codes: np.ndarray
+    kit: np.ndarray
+    value: np.ndarray
+    u: np.ndarray
+    pilot_kit: np.ndarray
+    pilot_value: np.ndarray
+    pilot_u: np.ndarray
+    kit_names: list[str]
+
+
+@dataclass
+class PointLink:
+    """The link at one point; ``d``, ``u_d``, ``u_link`` per result (None: not linked)."""
+
+    reference: str = ""
+    chi2: float | None = None
+    dof: int | None = None
+    kit_values: list[dict] = field(default_factory=list)
+    unlinked: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    d: list[float | None] = field(default_factory=list)
+    u_d: list[float | None] = field(default_factory=list)
+    u_link: list[float | None] = field(default_factory=list)
+
+
+def reference_of(method: str) -> str:
+    return PILOT if method in _PILOT_METHODS else WEIGHTED_MEAN
+
+
+def link_point(x: LinkInput) -> PointLink:
+    """Link one point (module docstring); never raises for the data: what cannot be linked
+    is said in ``notes`` and ``unlinked``."""
+    n = x.codes.size
+    out = PointLink(d=[None] * n, u_d=[None] * n, u_link=[None] * n)
+    reference = reference_of(x.method)
+    on_kit = x.kit >= 0
+    no_kit = sorted(x.codes[~on_kit].tolist())
+    if no_kit:
+        out.notes.append(f"not on any kit holding this device: {', '.join(no_kit)}")
+    if reference == PILOT and (x.pilot is None or x.pilot not in x.codes[on_kit].tolist()):
+        who = (
+            "the round has no pilot"
+            if x.pilot is None
+            else f"the pilot {x.pilot} has no result on a kit here"
+        )
+        out.notes.append(f"not linked: {who}")
+        out.unlinked = sorted(x.codes.tolist())
+        return out
+    rows = np.flatnonzero(on_kit)
+    n_labs = rows.size  # laboratory j is result rows[j]; the transfer series is n_labs
+    obs_kit = np.concatenate([x.kit[rows], x.pilot_kit]).astype(np.intp)
+    obs_lab = np.concatenate([np.arange(n_labs), np.full(x.pilot_kit.size, n_labs)]).astype(np.intp)
+    comp = lab_components(obs_kit, obs_lab)
+    if reference == PILOT:
+        anchor = comp[int(np.flatnonzero(x.codes[rows] == x.pilot)[0])]
+    elif x.pilot_kit.size:
+        anchor = comp[n_labs]
+    else:  # the part holding the most laboratories, the first of equals
+        labels, counts = np.unique(comp[:n_labs], return_counts=True)
+        anchor = labels[int(np.argmax(counts))]
+    keep_lab = comp == anchor
+    apart = rows[~keep_lab[:n_labs]]
+    out.unlinked = sorted(x.codes[apart].tolist() + no_kit)
+    if apart.size:
+        out.notes.append("not linked to the reference by any kit: "
+                         + ", ".join(sorted(x.codes[apart].tolist())))  # fmt: skip
+    return _solve(x, out, reference, rows, obs_kit, obs_lab, keep_lab)
+
+
+def _solve(
+    x: LinkInput, out: PointLink, reference: str, rows: np.ndarray, obs_kit: np.ndarray,
+    obs_lab: np.ndarray, keep_lab: np.ndarray,
+) -> PointLink:  # fmt: skip
+    n_labs = rows.size
+    keep = keep_lab[obs_lab]
+    y = np.concatenate([x.value[rows], x.pilot_value])[keep]
+    u = np.concatenate([x.u[rows], x.pilot_u])[keep]
+    kits, kit_idx = np.unique(obs_kit[keep], return_inverse=True)
+    labs, lab_idx = np.unique(obs_lab[keep], return_inverse=True)
+    in_mean = labs < n_labs
+    pilot = 0
+    if reference == PILOT:
+        pilot = int(np.flatnonzero(labs == int(np.flatnonzero(x.codes[rows] == x.pilot)[0]))[0])
+    try:
+        with np.errstate(all="ignore"):  # too large a value: said below, never a warning
+            linked = link(y, u, kit_idx, lab_idx, reference=reference, pilot=pilot,
+                          in_mean=in_mean)  # fmt: skip
+        numbers = (linked.doe, linked.doe_covariance, linked.u_link, linked.kit_value)
+        if not all(np.isfinite(a).all() for a in numbers):
+            raise CoreInputError("the results there are too large or their uncertainties "
+                                 "too small to compute with")  # fmt: skip
+    except (CoreInputError, np.linalg.LinAlgError) as exc:
+        out.notes.append(f"not linked: {exc}")
+        out.unlinked = sorted(x.codes.tolist())
+        return out
+    out.reference, out.chi2, out.dof = reference, float(linked.chi2), int(linked.dof)
+    out.kit_values = [{"kit": x.kit_names[int(k)], "value": float(v), "u": float(s)}
+                      for k, v, s in zip(kits, linked.kit_value, linked.u_kit_value,
+                                         strict=True)]  # fmt: skip
+    u_d = linked.u_doe
+    for j, lab in enumerate(labs.tolist()):
+        if lab < n_labs:
+            i = int(rows[lab])
+            out.d[i], out.u_d[i] = float(linked.doe[j]), float(u_d[j])
+            out.u_link[i] = float(linked.u_link[j])
+    return out

@@ -1,0 +1,87 @@
+"""The "Linking and drift" part of a report, drawn (docs/domain.md §9, §13, §14): no Django,
+as every drawing module of the reports (the data comes from ``analysis.reports.kits``)."""
+
+from __future__ import annotations
+
+from html import escape
+
+from reportlab.lib.units import mm
+from reportlab.platypus import Flowable, Spacer
+
+from analysis.reports.data import KitLink, KitSection, ReportData
+from analysis.reports.sections import by_unc, para, table, unc
+
+
+def kits_section(data: ReportData) -> list[Flowable]:
+    k = data.kits
+    if k is None:
+        return []
+    flow: list[Flowable] = [para("<b>Linking and drift</b>"), para(escape(k.text))]
+    flow += [para(escape(n), "bullet") for n in k.notes[:20]]
+    if k.drift:
+        rows = [["Device", "Point", "Kit", "n", "Model", "Slope per day", "u(slope)", "p"]]
+        for d in k.drift:
+            p = data.points[d.point]
+            rows.append(
+                [
+                    p.device,
+                    p.label,
+                    d.kit,
+                    str(d.n),
+                    d.model,
+                    by_unc(d.slope, d.u_slope),
+                    unc(d.u_slope),
+                    "–" if d.p_value is None else f"{d.p_value:.3f}",
+                ]
+            )
+        widths = [16 * mm, 44 * mm, 16 * mm, 8 * mm, 16 * mm, 24 * mm, 18 * mm, 14 * mm]
+        flow += [Spacer(1, 2 * mm), table(rows, widths)]
+    if k.links and data.is_participant:
+        flow += [Spacer(1, 2 * mm), _links_table(data, k)]
+    elif k.links and k.linked_round:
+        flow += [Spacer(1, 2 * mm), _labs_table(k)]
+    return flow
+
+
+def _labs_table(k: KitSection) -> Flowable:
+    """The summary: per participant (by code) its kit, its points linked and not, the
+    largest |d|/U(d) and the largest u_link over its points."""
+    by_code: dict[str, list[KitLink]] = {}
+    for link in k.links:
+        by_code.setdefault(link.code, []).append(link)
+    rows = [["Lab", "Kit", "Points linked", "not linked", "largest |d|/U(d)", "largest u_link"]]
+    for code, links in sorted(by_code.items()):
+        done = [x for x in links if x.d is not None and x.big_u is not None]
+        ratio = max((abs(x.d) / x.big_u for x in done if x.big_u and x.d is not None), default=None)
+        u_link = max((x.u_link for x in done if x.u_link is not None), default=None)
+        kits = ", ".join(sorted({x.kit for x in links}))
+        rows.append([code, kits, str(len(done)), str(len(links) - len(done)),
+                     "–" if ratio is None else f"{ratio:.2f}", unc(u_link)])  # fmt: skip
+    return table(rows, [16 * mm, 30 * mm, 26 * mm, 22 * mm, 32 * mm, 30 * mm])
+
+
+def _links_table(data: ReportData, k: KitSection) -> Flowable:
+    rows = [["Lab", "Device", "Point", "Kit", "Drift corr.", "u drift", "d", "U(d)", "u_link"]]
+    own = []
+    for n, link in enumerate(k.links, start=1):
+        p = data.points[link.point]
+        linked = link.d is not None
+        rows.append(
+            [
+                link.code,
+                p.device,
+                p.label,
+                link.kit,
+                by_unc(link.correction, link.u_drift, sign=True) if link.correction else "–",
+                unc(link.u_drift) if link.u_drift else "–",
+                by_unc(link.d, link.big_u, sign=True)
+                if linked
+                else ("not linked" if k.linked_round else "–"),
+                unc(link.big_u) if linked else "–",
+                unc(link.u_link) if linked else "–",
+            ]
+        )
+        if link.code == data.own_code:
+            own.append(n)
+    widths = [11 * mm, 15 * mm, 45 * mm, 13 * mm, 17 * mm, 14 * mm, 18 * mm, 14 * mm, 14 * mm]
+    return table(rows, widths, own)

@@ -1,0 +1,87 @@
+"""The data of the "Linking and drift" part of the reports (docs/domain.md §9, §13, §14):
+what the run did with the round's kits, the drift judged per kit and point, and the
+degrees of equivalence against the one reference with their link uncertainty — every
+participant's by code in the summary, the reader's own only in a participant report.
+Drawn by ``analysis.reports.kit_section``."""
+
+from __future__ import annotations
+
+from analysis.kit_results import kit_fits, kit_scores
+from analysis.models import AnalysisRun
+from analysis.reports.data import KitDrift, KitLink, KitSection
+from common.sizes import counted
+
+_TREATMENT = {
+    "correct": "each result on a drifting kit was corrected to the mean date t̄ of the "
+    "pilot's repeats, x − b·(t − t̄), with |t − t̄|·u(b) added to its uncertainty (the "
+    "reference corrected to the participant's date)",
+    "u_stab": "a drifting kit kept its constant value and each result on it had u_stab(t) = "
+    "|b·(t − t̄)|/√3 added to its uncertainty",
+}
+
+
+def kit_section_of_run(run: AnalysisRun, index: dict[int, int]) -> KitSection | None:
+    """Every participant's kit rows and the run's drift fits (None: no kits), read once
+    per run; :func:`for_reader` keeps what one report may print."""
+    fits = list(kit_fits(run))
+    if not fits:
+        return None
+    drift = tuple(
+        KitDrift(
+            index[f.measurement_point_id],
+            d["kit"],
+            d["n"],
+            d["model"],
+            d["slope"],
+            d["u_slope"],
+            d.get("p_value"),
+        )
+        for f in fits
+        for d in f.drift
+    )
+    notes = tuple(dict.fromkeys(n for f in fits for n in f.notes))
+    linked = [f for f in fits if f.reference]
+    links = tuple(
+        KitLink(
+            k.result.submission.participant.code,
+            index[k.result.measurement_point_id],
+            k.kit.name if k.kit else "–",
+            k.drift_correction,
+            k.u_drift,
+            k.linked_d,
+            None if k.linked_u is None else 2 * k.linked_u,
+            k.u_link,
+        )
+        for k in kit_scores(run)
+    )
+    treatment = str(run.parameters.get("drift_treatment") or run.comparison.drift_treatment)
+    drifting = sum(d.model == "linear" for d in drift)
+    text = (
+        f"The pilot's repeat measurements judged {counted(len(drift), 'kit and point')} "
+        f"(a line where its slope is significant at 5 %): {drifting} drifting. Where a kit "
+        f"drifts, {_TREATMENT.get(treatment, treatment)}; elsewhere nothing changed."
+    )
+    if linked:
+        refs = {f.reference for f in linked}
+        ref = " and ".join(
+            "the pilot" if r == "pilot" else "the weighted mean of the laboratories"
+            for r in sorted(refs)
+        )
+        text += (
+            f" Every participant's degree of equivalence d against one reference, "
+            f"{ref}, across the kits was found by least squares over the kits and loops "
+            f"at {counted(len(linked), 'point')} (the pilot's repeats linking the kits); "
+            "U(d) = 2·u(d), and u_link is the part of u(d) that is not the laboratory's "
+            f"own. {counted(len(fits) - len(linked), 'point')} could not be linked."
+        )
+    return KitSection(text, drift, notes, links, bool(linked))
+
+
+def for_reader(section: KitSection | None, own_code: str | None) -> KitSection | None:
+    """The summary keeps every link (by code); a participant report its own only, and the
+    run's messages without other participants' codes."""
+    if section is None or own_code is None:
+        return section
+    own = tuple(k for k in section.links if k.code == own_code)
+    notes = tuple(n for n in section.notes if own_code in n)
+    return KitSection(section.text, section.drift, notes, own, section.linked_round)

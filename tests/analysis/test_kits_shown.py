@@ -1,0 +1,142 @@
+"""A linked round's kits shown (docs/domain.md §13, §14; docs/interfaces.md §3): the
+coordinator's "Kits and linking" page with d, U(d), u_link written as §3.1 says, the API's
+added keys at full precision, the reports' "Linking and drift" part; another round's
+coordinator gets 404, a participant sees its own numbers only."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from rest_framework.test import APIClient
+
+from analysis.models import KitScore
+from analysis.reports.assemble import clear_run_contexts, report_data
+from analysis.reports.render import render_report
+from common import numbers
+from proficiency.models import ComparisonStatus
+from tests.analysis.kit_rounds import add_kit, make_round, started
+from tests.analysis.reports.conftest import pdf_text
+from tests.factories import ComparisonFactory, MembershipFactory, UserFactory
+
+pytestmark = pytest.mark.django_db
+
+
+@pytest.fixture
+def linked(django_capture_on_commit_callbacks):
+    r = make_round()
+    add_kit(r, "Kit A", r["labs"][:3])
+    add_kit(r, "Kit B", r["labs"][3:], drift=0.02, offset=0.6)
+    r["coordinator"] = UserFactory.create(username="kit-coordinator")
+    r["comparison"].coordinators.add(r["coordinator"])
+    other = UserFactory.create(username="other-coordinator")
+    ComparisonFactory.create(code="OTHER-01").coordinators.add(other)
+    r["other"] = other
+    r["run"] = started(r["comparison"], django_capture_on_commit_callbacks)
+    clear_run_contexts()
+    return r
+
+
+def row_of(r, code, point=0) -> KitScore:
+    return KitScore.objects.select_related("kit").get(
+        run=r["run"], result__measurement_point=r["points"][point],
+        result__submission__participant__code=code,
+    )  # fmt: skip
+
+
+def test_the_coordinator_reads_every_participants_link(client, linked):
+    client.force_login(linked["coordinator"])
+    code = linked["comparison"].code
+    results = client.get(f"/coordinator/{code}/results/")
+    assert results.status_code == 200 and "Kits and linking" in results.content.decode()
+    page = client.get(f"/coordinator/{code}/results/kits/")
+    assert page.status_code == 200
+    html = page.content.decode()
+    k = row_of(linked, "L5")
+    assert k.linked_d is not None and k.linked_u is not None and k.u_link is not None
+    big_u = 2 * k.linked_u
+    assert numbers.round_to_uncertainty(k.linked_d, big_u, sign=True) in html
+    assert numbers.uncertainty(big_u) in html and numbers.uncertainty(k.u_link) in html
+    assert numbers.round_to_uncertainty(k.drift_correction, k.result.expanded_uncertainty,
+                                        sign=True) in html  # fmt: skip
+    assert "Kit B" in html and "drifting" in html and "the pilot" in html
+
+
+def test_another_rounds_coordinator_gets_404(client, linked):
+    client.force_login(linked["other"])
+    code = linked["comparison"].code
+    assert client.get(f"/coordinator/{code}/results/kits/").status_code == 404
+    api = APIClient()
+    api.force_authenticate(linked["other"])
+    assert api.get(f"/api/v1/comparisons/{code}/scores/").status_code == 404
+
+
+def test_the_api_carries_the_link_at_full_precision(linked):
+    api = APIClient()
+    api.force_authenticate(linked["coordinator"])
+    code = linked["comparison"].code
+    answer = api.get(f"/api/v1/comparisons/{code}/scores/?lab=L5&frequency_hz=5")
+    assert answer.status_code == 200
+    (item,) = answer.json()["results"]
+    k = row_of(linked, "L5")
+    assert item["kit"] == "Kit B"
+    assert item["linked_d"] == k.linked_d and item["u_link"] == k.u_link
+    assert k.linked_u is not None and item["linked_expanded_uncertainty"] == 2 * k.linked_u
+    assert item["drift_correction"] == k.drift_correction != 0 and item["u_drift"] == k.u_drift
+
+
+def test_a_participant_sees_its_own_link_only(linked):
+    c = linked["comparison"]
+    c.status = ComparisonStatus.PUBLISHED
+    c.save(update_fields=["status"])
+    own = linked["labs"][1]  # L2
+    member = UserFactory.create(username="l2-member")
+    MembershipFactory.create(user=member, laboratory=own.laboratory)
+    api = APIClient()
+    api.force_authenticate(member)
+    answer = api.get(f"/api/v1/comparisons/{c.code}/scores/?lab=L5")  # asks for another's
+    assert answer.status_code == 200
+    items = answer.json()["results"]
+    assert {i["lab"] for i in items} == {"L2"} and len(items) == 2
+    assert all(i["linked_d"] is not None and i["kit"] == "Kit A" for i in items)
+    client = APIClient()
+    client.force_login(member)
+    assert client.get(f"/coordinator/{c.code}/results/kits/").status_code == 404
+
+
+def test_the_reports_say_what_was_done(linked):
+    run = linked["run"]
+    summary = "\n".join(pdf_text(render_report(report_data(run=run))))
+    assert "Linking and drift" in summary and "the pilot" in summary
+    assert re.search(r"2\s+drifting", summary)  # Kit B at both points
+    k5 = row_of(linked, "L5")
+    largest = max(row_of(linked, "L5", p).u_link or 0 for p in (0, 1))
+    assert numbers.uncertainty(largest) in summary
+    own = linked["labs"][4]  # L5
+    mine = "\n".join(pdf_text(render_report(report_data(run=run, participant=own))))
+    assert "Linking and drift" in mine
+    assert k5.linked_d is not None and k5.linked_u is not None
+    assert numbers.round_to_uncertainty(k5.linked_d, 2 * k5.linked_u, sign=True) in mine
+    other = row_of(linked, "L2")
+    assert other.linked_d is not None and other.linked_u is not None
+    table = mine[mine.find("Lab Device Point Kit") : mine.find("4 Participants")]
+    assert "L2 " not in table and "L5 " in table
+
+
+def test_the_schema_names_the_added_keys():
+    schema = APIClient().get("/api/schema/?format=json").json()
+    keys = {"kit", "linked_d", "linked_expanded_uncertainty", "u_link", "drift_correction",
+            "u_drift"}  # fmt: skip
+    assert keys <= schema["components"]["schemas"]["Score"]["properties"].keys()
+    run_keys = schema["components"]["schemas"]["RunParameters"]["properties"]
+    assert "drift_treatment" in run_keys
+
+
+def test_chi2_is_written_to_three_significant_digits(client, linked):
+    from analysis.models import KitPointFit
+
+    client.force_login(linked["coordinator"])
+    fit = KitPointFit.objects.get(run=linked["run"], measurement_point=linked["points"][0])
+    assert fit.chi2 is not None and fit.dof == 6
+    html = client.get(f"/coordinator/{linked['comparison'].code}/results/kits/").content.decode()
+    assert f'<td class="num">{numbers.significant(fit.chi2, 3)}</td>' in html
