@@ -49,6 +49,15 @@ def isolated_media_root(request, tmp_path):
 
 
 @pytest.fixture(autouse=True)
+def chart_warming_off(request):
+    """No chart warming after a run (docs/architecture.md §3.1): eager, it would draw a dozen
+    charts, seconds, in every test that runs an analysis; its own test turns it on."""
+    if not request.config.pluginmanager.hasplugin("django"):
+        return
+    request.getfixturevalue("settings").CHART_WARMING = False
+
+
+@pytest.fixture(autouse=True)
 def demo_without_earlier_round(request, monkeypatch):
     """The demo loads without its published earlier round, IMU-2023-DEMO, whose analysis and
     publication (13 PDF reports, at commit) would cost every test that loads the demo seconds
