@@ -13,6 +13,29 @@ if os.environ.get("CI"):
     hypothesis_settings.load_profile("ci")
 
 
+#: the modules that take longest (half a minute to two on a worker: real workers, browsers,
+#: gunicorn and subprocesses, fuzzing, every route by every persona), run first: the two
+#: xdist workers then end on short tests, together, instead of one waiting for the other's
+#: last long test (longest first); the order within a module stays
+LONGEST_FIRST = (
+    "tests/security/test_schema_fuzz.py",
+    "tests/faults/",
+    "tests/proficiency/test_production.py",
+    "tests/security/test_permission_matrix.py",
+    "tests/proficiency/test_slow_clients.py",
+    "tests/browser/",
+)
+
+
+@pytest.hookimpl(trylast=True)  # after pytest-django's order (its TestCase tests first)
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:
+        found = (i for i, prefix in enumerate(LONGEST_FIRST) if item.nodeid.startswith(prefix))
+        return next(found, len(LONGEST_FIRST))
+
+    items.sort(key=rank)  # stable: every module keeps its tests together and in order
+
+
 #: kept by the flush after a transactional test: post_migrate would write the same rows again
 FLUSH_KEEPS = frozenset({"django_content_type", "auth_permission"})
 
