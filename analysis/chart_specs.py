@@ -18,13 +18,13 @@ from django.utils.text import slugify
 from analysis import charts, graph_data
 from analysis import standard_charts as std
 from analysis.chart_cache import cached_chart
-from analysis.forms import point_choice_label
+from analysis.graph_data import point_choice_label
 from proficiency.models import MeasurementPoint
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from analysis.views import Viewer
+    from analysis.viewer import Viewer
 
 #: the download formats: the page's inline SVG is a third, ``svg`` without its prologue
 IMAGE_TYPES = {"svg": "image/svg+xml", "png": "image/png"}

@@ -14,65 +14,14 @@ from django.http import Http404, HttpResponse, QueryDict
 from django.views.decorators.http import require_GET
 
 from analysis import chart_specs as specs
-from analysis import charts
-from analysis.chart_cache import cached_chart
-from analysis.forms import PairForm, PointForm, point_choice_label
-from analysis.graph_data import point_data, point_pairs, run_points
-from analysis.selectors import run_matrices
-from analysis.views import Viewer, _render, _viewer
-from proficiency.models import MeasurementPoint
+from analysis.chart_page import page_charts
+from analysis.forms import PairForm, PointForm
+from analysis.graph_data import point_pairs, run_points
+from analysis.viewer import Viewer
+from analysis.views import _render, _viewer
 
 if TYPE_CHECKING:
     from common.http import AuthenticatedHttpRequest
-
-
-def _point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str]:
-    assert viewer.run is not None
-    parts = (point.pk, viewer.own_code, viewer.comparison.en_limit)
-    return cached_chart(viewer.run, "point", parts, lambda: _draw_point_charts(viewer, point))
-
-
-def _draw_point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str]:
-    assert viewer.run is not None
-    data = point_data(viewer.run, point)
-    title = point_choice_label(point)
-    return {
-        "point": charts.point_chart(
-            **specs.point_arguments(data, title, point.device.unit, viewer.own_code)
-        ),
-        "en": charts.en_chart(data.labels, data.en, title=f"En · {title}",
-                              limit=viewer.comparison.en_limit, highlight=viewer.own_code),
-    }  # fmt: skip
-
-
-def _frequency_charts(viewer: Viewer) -> list[str]:
-    """Per device, sensitivity vs frequency per axis: the run's frequency matrices (§3 means)."""
-    assert viewer.run is not None
-    devices = tuple(viewer.comparison.devices.order_by("pk").values_list(
-        "name", "unit", "nominal_sensitivity", "tolerance", "tolerance_relative"))  # fmt: skip
-    return cached_chart(viewer.run, "frequency", devices, lambda: _draw_frequency_charts(viewer))
-
-
-def _draw_frequency_charts(viewer: Viewer) -> list[str]:
-    assert viewer.run is not None
-    by_device: dict[str, list[charts.Series]] = {}
-    for m in run_matrices(viewer.run, "frequency", {}):
-        series = charts.Series(str(m.group.get("axis", "")), [float(f) for f in m.levels],
-                               m.values, m.expanded_uncertainties)  # fmt: skip
-        by_device.setdefault(str(m.group.get("device", "")), []).append(series)
-    devices = {d.name: d for d in viewer.comparison.devices.all()}
-    out = []
-    for name, curves in sorted(by_device.items()):
-        d = devices.get(name)
-        nominal = d.nominal_sensitivity if d else None
-        half = None
-        if d and nominal and d.tolerance:
-            half = nominal * d.tolerance / 100 if d.tolerance_relative else d.tolerance
-        out.append(charts.frequency_chart(
-            curves, title=f"{name}: mean of all labs per frequency", unit=d.unit if d else "",
-            nominal=nominal, nominal_half_width=half,
-        ))  # fmt: skip
-    return out
 
 
 @login_required
@@ -86,25 +35,11 @@ def charts_page(request: AuthenticatedHttpRequest, code: str, audience: str) -> 
     point = form.chosen()
     pair_form = PairForm(request.GET, pairs=point_pairs(points))
     by_pk = {p.pk: p for p in points}
-    pair = pair_form.chosen(point.pk if point else None)
-    context = {
-        "form": form,
-        "point": point,
-        "figures": _point_figures(viewer, point) if point else [],
-        "pair_form": pair_form,
-        "youden": specs.figure(viewer, specs.youden_spec(viewer, by_pk[pair[0]], by_pk[pair[1]]))
-        if pair else None,
-        "mandel": [specs.figure(viewer, s) for s in specs.mandel_specs(viewer).values()],
-        "frequency_charts": _frequency_charts(viewer),
-    }  # fmt: skip
+    pair_pks = pair_form.chosen(point.pk if point else None)
+    pair = tuple(by_pk[pk] for pk in pair_pks) if pair_pks else None
+    context = {"form": form, "point": point, "pair_form": pair_form}
+    context |= page_charts(viewer, point, pair)
     return _render(request, viewer, "charts", context)
-
-
-def _point_figures(viewer: Viewer, point: MeasurementPoint) -> list[dict]:
-    """The point's charts, the first two (results, En) drawn together by ``_point_charts``."""
-    both = _point_charts(viewer, point)
-    found = specs.point_specs(viewer, point).items()
-    return [specs.figure(viewer, spec, both.get(name)) for name, spec in found]
 
 
 @login_required

@@ -7,8 +7,9 @@ from typing import Any, cast
 from django import forms
 
 from analysis.core.scores import FLAG_LABELS
+from analysis.graph_data import default_pair, point_choice_label
 from common.forms import BootstrapMixin
-from common.points import POINT_FIELDS, format_number, point_label
+from common.points import POINT_FIELDS, format_number
 from proficiency.models import Axis, Bench, Comparison, Direction, MeasurementPoint
 
 ALL = [("", "All")]
@@ -20,10 +21,6 @@ FACTORS = [
     ("device", "Device"),
     ("lab", "Laboratory (one measurement point)"),
 ]
-
-
-def point_choice_label(p: MeasurementPoint) -> str:
-    return point_label(p.key, sep=" · ")
 
 
 #: the flags a score carries
@@ -136,8 +133,7 @@ class PairForm(BootstrapMixin, forms.Form):
         """The chosen pair's two point ids, else the first pair of ``point`` (the chosen
         point), else the first pair (None: no pair)."""
         key = self.cleaned_data.get("pair") if self.is_valid() else None
-        mine = (k for k in self.pairs if point is not None and str(point) in k.split("-"))
-        key = key or next(mine, None) or next(iter(self.pairs), None)
+        key = key or default_pair(list(self.pairs.items()), point)
         if key is None:
             return None
         a, b = key.split("-")

@@ -40,6 +40,11 @@ class PointData:
                                a.standard_uncertainty, in_assigned=self.in_assigned)  # fmt: skip
 
 
+def point_choice_label(p: MeasurementPoint) -> str:
+    """A point as the pages, forms and charts name it (its key, joined by " · ")."""
+    return point_label(p.key, sep=" · ")
+
+
 def _nan(value: float | None) -> float:
     return float("nan") if value is None else float(value)
 
@@ -91,6 +96,13 @@ def point_pairs(points: list[MeasurementPoint]) -> list[tuple[str, str]]:
                 ranked.append((rank, f"{a.pk}-{b.pk}", _pair_label(kind, a, b)))
     ranked.sort(key=lambda r: r[0])  # stable: the points' order within a rank
     return [(key, label) for _, key, label in ranked]
+
+
+def default_pair(pairs: list[tuple[str, str]], point: int | None = None) -> str | None:
+    """The pair shown when none is asked for: the first pair of ``point`` (the point
+    shown), else the first pair (None: the run has no pair)."""
+    mine = (key for key, _ in pairs if point is not None and str(point) in key.split("-"))
+    return next(mine, None) or next((key for key, _ in pairs), None)
 
 
 def _pair_label(kind: str, a: MeasurementPoint, b: MeasurementPoint) -> str:

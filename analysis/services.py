@@ -78,7 +78,12 @@ from analysis.pipeline import (
     sigma_pt_values,
 )
 from analysis.selectors import LoadedRound, load_round, point_result_counts, point_spec
-from analysis.tasks import analysis_chunk_task, analysis_finish_task, analysis_run_task
+from analysis.tasks import (
+    analysis_chunk_task,
+    analysis_finish_task,
+    analysis_run_task,
+    charts_warm_task,
+)
 from common import jobs
 from common.errors import ApplicationError, StateConflict, ValidationFailed
 from common.jobs import heartbeat
@@ -555,6 +560,8 @@ def _finish(run: AnalysisRun, matrices: list) -> str:
     Comparison.objects.filter(pk=run.comparison_id, status=ComparisonStatus.CLOSED).update(
         status=ComparisonStatus.ANALYSED
     )
+    if settings.CHART_WARMING:  # the coordinator's first view of the charts finds them drawn
+        transaction.on_commit(lambda: _enqueue(charts_warm_task, run.pk))
     return R.SUCCEEDED
 
 

@@ -10,7 +10,10 @@ whose heartbeat went stale, within minutes; the broker's visibility timeout is t
 backstop.  A chunk already stored, or held by a live task, is a no-op.
 """
 
+import logging
+
 from celery import shared_task
+from celery.exceptions import SoftTimeLimitExceeded
 from django.conf import settings
 
 from analysis.reports.tasks import (  # noqa: F401
@@ -19,6 +22,7 @@ from analysis.reports.tasks import (  # noqa: F401
     reports_issue_all_task,
 )
 
+log = logging.getLogger(__name__)
 _TASK = {
     "acks_late": True,
     "reject_on_worker_lost": True,
@@ -58,6 +62,24 @@ def analysis_finish_task(run_id: int) -> str:
     from analysis.services import analysis_run_finish
 
     return analysis_run_finish(run_id=run_id)
+
+
+@shared_task(
+    soft_time_limit=settings.CHART_WARMING_SOFT_SECONDS,
+    time_limit=settings.CHART_WARMING_SOFT_SECONDS + 60,
+)
+def charts_warm_task(run_id: int) -> bool:
+    """Draw run ``run_id``'s charts of a coordinator's first view into the chart cache
+    (docs/architecture.md §3.1); a chart already cached is not drawn again, so a second
+    delivery draws nothing.  Past the soft limit it stops: the page draws the rest."""
+    # in the body: the service module imports this one to enqueue the task (a cycle)
+    from analysis.chart_page import charts_warm
+
+    try:
+        return charts_warm(run_id=run_id)
+    except SoftTimeLimitExceeded:
+        log.warning("charts of analysis run %s: warming stopped at the soft time limit", run_id)
+        return False
 
 
 @shared_task(bind=True, **_TASK)

@@ -5,11 +5,12 @@ participants (``lab_*`` names under ``/results/``)."""
 from django.urls import path
 
 from analysis import archive_views, chart_views, consistency_views, history_views, kit_views, views
+from analysis.viewer import COORDINATOR, PARTICIPANT
 
 C = "coordinator/<slug:code>/"
 P = "results/<slug:code>/"
-COORD = {"audience": views.COORDINATOR}
-LAB = {"audience": views.PARTICIPANT}
+COORD = {"audience": COORDINATOR}
+LAB = {"audience": PARTICIPANT}
 
 urlpatterns = [
     # a laboratory's history across the published rounds (docs/domain.md §4.1)

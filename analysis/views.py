@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass
-from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -49,6 +47,7 @@ from analysis.selectors import (
     score_records,
 )
 from analysis.services import analysis_run_cancel, analysis_run_start
+from analysis.viewer import COORDINATOR, Viewer
 from common.errors import ApplicationError
 from labs.access import coordinated, coordinated_comparisons, published_participation
 from labs.importers import write_table
@@ -58,7 +57,6 @@ from proficiency.selectors import POINT_ORDER
 if TYPE_CHECKING:
     from common.http import AuthenticatedHttpRequest
 
-COORDINATOR, PARTICIPANT = "coordinator", "participant"
 R = AnalysisRun.Status
 FLAG_CLASS = {"satisfactory": "text-bg-success", "warning": "text-bg-warning",
               "action": "text-bg-danger", "not scored": "text-bg-secondary"}  # fmt: skip
@@ -66,42 +64,6 @@ CONTENT_TYPES = {
     "csv": "text/csv; charset=utf-8",
     "xlsx": "application/vnd.openxmlformats-officedocument.spreadsheetml.sheet",
 }
-
-
-@dataclass(frozen=True)
-class Viewer:
-    """Who reads a results page: the comparison, the run shown, the own code to highlight."""
-
-    comparison: Comparison
-    run: AnalysisRun | None
-    audience: str
-    own_code: str | None = None
-
-    @property
-    def is_coordinator(self) -> bool:
-        return self.audience == COORDINATOR
-
-    @cached_property
-    def current(self) -> AnalysisRun | None:
-        """The comparison's current run, read once per page (every tab's link needs it)."""
-        return current_run(self.comparison)
-
-    def url(self, page: str) -> str:
-        prefix = "" if self.is_coordinator else "lab_"
-        url = reverse(f"coordinator:{prefix}{page}", args=[self.comparison.code])
-        current = self.current
-        if self.is_coordinator and self.run and current and self.run.pk != current.pk:
-            url += f"?run={self.run.pk}"
-        return url
-
-    def nav(self) -> list[tuple[str, str, str]]:
-        pages = [("results", "Assigned values"), ("scores", "Scores"), ("charts", "Charts"),
-                 ("compatibility", "Compatibility"), ("consistency", "Consistency")]  # fmt: skip
-        if self.is_coordinator:
-            pages.insert(1, ("performance", "Performance"))
-            if self.run is not None and self.run.kit_points.exists():  # docs/domain.md §14
-                pages.append(("results_kits", "Kits and linking"))
-        return [(page, label, self.url(page)) for page, label in pages]
 
 
 def _viewer(request: AuthenticatedHttpRequest, code: str, audience: str) -> Viewer:

@@ -8,7 +8,8 @@ Builds the demo (``load_demo``) in a scratch SQLite database (or the database of
 requests every results page through Django's test client (the whole middleware stack) as
 the coordinator and as a participant: first with the chart cache empty (the baseline,
 measured in the same run), then again with the run's charts cached. Prints the median of
-``-n`` requests per page, cold and warm, and the ratio.
+``-n`` requests per page, cold and warm, and the ratio; then a coordinator's first view of
+the charts page cold and after the task that warms a new run's charts.
 
     .venv/bin/python bench/bench_pages.py -n 5
 """
@@ -66,7 +67,36 @@ def main() -> None:
             worst = max(worst, w)
             print(f"{audience[:5] + ' ' + page[-38:]:44} {c:8.0f} {w:8.0f} {c / w:6.1f}")
     print(f"slowest warm page: {worst:.0f} ms (target < 300 ms)")
+    _first_view(code, clients["coordinator"], args.n)
     _large(args.labs, args.n)
+
+
+def _first_view(code: str, client, n: int) -> None:
+    """A coordinator's first view of the charts page (no query) of a new run: cold, and
+    after the background task that warms it (``charts_warm_task``, timed on its own)."""
+    from django.core.cache import cache
+
+    from analysis.chart_page import charts_warm
+    from analysis.selectors import current_run
+    from proficiency.models import Comparison
+
+    run = current_run(Comparison.objects.get(code=code))
+    assert run is not None
+    page = f"/coordinator/{code}/charts/"
+    cold, task, warmed = [], [], []
+    for _ in range(n):
+        cache.clear()
+        cold.append(_time(client, page))
+        cache.clear()
+        start = time.perf_counter()
+        assert charts_warm(run_id=run.pk)
+        task.append((time.perf_counter() - start) * 1000)
+        warmed.append(_time(client, page))
+    c, t, w = (statistics.median(x) for x in (cold, task, warmed))
+    print(
+        f"first view of a new run's charts page (coordinator): cold {c:.0f} ms, "
+        f"after the warming task {w:.0f} ms (the task: {t:.0f} ms, in the background)"
+    )
 
 
 def _time(client, path: str) -> float:

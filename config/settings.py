@@ -199,6 +199,10 @@ CELERY_BROKER_CONNECTION_RETRY_ON_STARTUP = True
 JOB_HEARTBEAT_SECONDS = env.float("JOB_HEARTBEAT_SECONDS", default=30.0)
 JOB_STALE_SECONDS = max(env.float("JOB_STALE_SECONDS", default=300.0), 3 * JOB_HEARTBEAT_SECONDS)
 JOB_SWEEP_SECONDS = env.float("JOB_SWEEP_SECONDS", default=60.0)
+# After a run succeeds, a task draws the charts of a coordinator's first view of its charts
+# page into the cache (docs/architecture.md §3.1); the tests turn it off (tests/conftest.py).
+CHART_WARMING = env.bool("CHART_WARMING", default=True)
+CHART_WARMING_SOFT_SECONDS = env.int("CHART_WARMING_SOFT_SECONDS", default=300)
 # A round's archive (docs/interfaces.md §6) of a run with at most this many scores is built
 # in the request that asks for it (a second or two); a larger one by a task.
 ARCHIVE_INLINE_MAX_SCORES = env.int("ARCHIVE_INLINE_MAX_SCORES", default=5000)

@@ -13,6 +13,61 @@ if os.environ.get("CI"):
     hypothesis_settings.load_profile("ci")
 
 
+#: the modules that take longest (half a minute to two on a worker: real workers, browsers,
+#: gunicorn and subprocesses, fuzzing, every route by every persona), run first: the two
+#: xdist workers then end on short tests, together, instead of one waiting for the other's
+#: last long test (longest first); the order within a module stays
+LONGEST_FIRST = (
+    "tests/security/test_schema_fuzz.py",
+    "tests/faults/",
+    "tests/proficiency/test_production.py",
+    "tests/security/test_permission_matrix.py",
+    "tests/proficiency/test_slow_clients.py",
+    "tests/browser/",
+)
+
+
+@pytest.hookimpl(trylast=True)  # after pytest-django's order (its TestCase tests first)
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:
+        found = (i for i, prefix in enumerate(LONGEST_FIRST) if item.nodeid.startswith(prefix))
+        return next(found, len(LONGEST_FIRST))
+
+    items.sort(key=rank)  # stable: every module keeps its tests together and in order
+
+
+#: kept by the flush after a transactional test: post_migrate would write the same rows again
+FLUSH_KEEPS = frozenset({"django_content_type", "auth_permission"})
+
+
+@pytest.fixture(autouse=True, scope="session")
+def flush_by_delete(request):
+    """A transactional test (``transaction=True``, a live server, a real worker) ends with
+    Django's flush, on PostgreSQL a TRUNCATE of every table: about 1.5 s each time, as
+    PostgreSQL gives every table and index new files; DELETE of the few rows a test wrote
+    takes milliseconds and leaves the same empty tables (sequences run on either way). The
+    foreign keys are deferred to the end of the flush's transaction, so no order is needed.
+    Content types and permissions stay: post_migrate, which follows the flush, would only
+    write them again."""
+    if not request.config.pluginmanager.hasplugin("django"):
+        yield
+        return
+    from django.db.backends.postgresql.operations import DatabaseOperations
+
+    truncate = DatabaseOperations.sql_flush
+
+    def sql_flush(self, style, tables, *, reset_sequences=False, allow_cascade=False):
+        if reset_sequences or allow_cascade:  # TRUNCATE's own options: Django's statement
+            return truncate(self, style, tables, reset_sequences=reset_sequences,
+                            allow_cascade=allow_cascade)  # fmt: skip
+        deletes = [f"DELETE FROM {self.quote_name(t)}" for t in tables if t not in FLUSH_KEEPS]
+        return ["SET CONSTRAINTS ALL DEFERRED", *deletes] if deletes else []
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(DatabaseOperations, "sql_flush", sql_flush)
+        yield
+
+
 @pytest.fixture(autouse=True)
 def fast_password_hasher(request):
     """Password hashing is deliberately slow; tests do not need that strength."""
@@ -46,6 +101,15 @@ def isolated_media_root(request, tmp_path):
         return
     settings = request.getfixturevalue("settings")
     settings.MEDIA_ROOT = tmp_path / "media"
+
+
+@pytest.fixture(autouse=True)
+def chart_warming_off(request):
+    """No chart warming after a run (docs/architecture.md §3.1): eager, it would draw a dozen
+    charts, seconds, in every test that runs an analysis; its own test turns it on."""
+    if not request.config.pluginmanager.hasplugin("django"):
+        return
+    request.getfixturevalue("settings").CHART_WARMING = False
 
 
 @pytest.fixture(autouse=True)

@@ -99,6 +99,7 @@ class Workers:
             "DATABASE_URL": test_db,
             "CELERY_BROKER_URL": BROKER,
             "FAULT_QUEUE": self.queue,
+            "CHART_WARMING": "false",  # no chart drawing after the runs these tests watch
         }
         env |= env_extra
         proc = subprocess.Popen(

@@ -1,7 +1,9 @@
 """The demo comparison, analysed: the data every report test builds on."""
 
 import io
+from collections.abc import Sequence
 from io import StringIO
+from typing import overload
 
 import pytest
 from django.core.management import call_command
@@ -36,11 +38,35 @@ def media_root(settings, tmp_path):
     return settings.MEDIA_ROOT
 
 
-def pdf_text(pdf: bytes) -> list[str]:
-    """The text of each page (pypdf)."""
-    from pypdf import PdfReader
+class PdfPages(Sequence[str]):
+    """The text of each page (pypdf), extracted when first read: ``pdf_text(pdf)[0]`` reads
+    the first page only (pypdf takes a fifth of a second per page of a report)."""
 
-    return [page.extract_text() for page in PdfReader(io.BytesIO(pdf)).pages]
+    def __init__(self, pdf: bytes) -> None:
+        from pypdf import PdfReader
+
+        self._pages = PdfReader(io.BytesIO(pdf)).pages
+        self._text: dict[int, str] = {}
+
+    def __len__(self) -> int:
+        return len(self._pages)
+
+    @overload
+    def __getitem__(self, i: int) -> str: ...
+    @overload
+    def __getitem__(self, i: slice) -> list[str]: ...
+    def __getitem__(self, i: int | slice) -> str | list[str]:
+        if isinstance(i, slice):
+            return [self[j] for j in range(len(self))[i]]
+        j = range(len(self))[i]  # an IndexError past the end, as a list's
+        if j not in self._text:
+            self._text[j] = self._pages[j].extract_text()
+        return self._text[j]
+
+
+def pdf_text(pdf: bytes) -> PdfPages:
+    """The text of each page (pypdf), each page read when first asked for."""
+    return PdfPages(pdf)
 
 
 def published_missing_reports(comparison):
