@@ -9,6 +9,7 @@ from datetime import datetime
 import numpy as np
 
 from common.points import PointKey, point_label
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
 
 SUMMARY = "summary"
 PARTICIPANT = "participant"
@@ -40,12 +41,13 @@ class PointInfo:
     direction: str
     amplitude_m_s2: float | None
     unit: str
+    quantity: str = DEFAULT_QUANTITY
 
     @property
     def key(self) -> PointKey:
         return PointKey(
             self.device, self.axis, self.frequency_hz, self.bench, self.direction,
-            self.amplitude_m_s2,
+            self.amplitude_m_s2, self.quantity,
         )  # fmt: skip
 
     @property
