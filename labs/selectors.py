@@ -10,9 +10,11 @@ from django.db.models import (
     BigIntegerField,
     BooleanField,
     Case,
+    CharField,
     Count,
     Exists,
     Expression,
+    F,
     Max,
     OuterRef,
     Q,
@@ -24,6 +26,7 @@ from django.db.models import (
 )
 from django.db.models.functions import Cast, Substr
 
+from common import quantities
 from common.errors import NotVisible
 from common.points import POINT_LOOKUPS, format_number
 from common.quantities import DEFAULT as DEFAULT_QUANTITY
@@ -154,6 +157,18 @@ def scope_levels_filter(
         if values:
             q &= Q(**{lookup: list(values)})
     return q
+
+
+def point_unit_expression(prefix: str = "") -> Expression:
+    """A point's unit in SQL, as ``common.quantities.point_unit`` gives it: the kind's own
+    unit (deg for a phase) or else its device's; ``prefix`` reaches the point from another
+    model (``measurement_point__``)."""
+    cases = [
+        When(**{f"{prefix}quantity": k.name}, then=Value(k.default_unit))
+        for k in quantities.KINDS
+        if k.units
+    ]
+    return Case(*cases, default=F(f"{prefix}device__unit"), output_field=CharField())
 
 
 def scope_flag(participant: Participant | None, *, default: bool | None = None) -> Expression:

@@ -255,7 +255,7 @@ class MeasurementPoint(models.Model):
     )
 
     class Meta:
-        ordering = ["device__name", "bench", "direction", "axis", "frequency_hz"]
+        ordering = ["device__name", "bench", "direction", "quantity", "axis", "frequency_hz"]
         constraints = [
             models.UniqueConstraint(
                 fields=[
@@ -299,6 +299,22 @@ class MeasurementPoint(models.Model):
 
     def __str__(self) -> str:
         return point_label(self.key)
+
+    @property
+    def value_unit(self) -> str:
+        """The unit of the point's values: the device's for a magnitude, ``deg`` for a phase
+        (``common.quantities.point_unit``; reads ``device``)."""
+        return quantities.point_unit(self.quantity, self.device.unit)
+
+    @property
+    def unit_shown(self) -> str:
+        """:attr:`value_unit` as written after a number on a page (``°`` for degrees)."""
+        return quantities.unit_symbol(self.quantity, self.value_unit)
+
+    @property
+    def quantity_label(self) -> str:
+        """``sensitivity phase``: the kind as words (the registry's label)."""
+        return quantities.kind(self.quantity).label
 
     @property
     def key(self) -> PointKey:

@@ -96,7 +96,7 @@ class ScoreRow:
     point: int
     lab: str
     d: float
-    d_percent: float
+    d_percent: float | None  # None for a phase (docs/domain.md §12)
     en: float
     zeta: float
     z: float | None

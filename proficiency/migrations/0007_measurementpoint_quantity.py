@@ -10,6 +10,10 @@ class Migration(migrations.Migration):
     ]
 
     operations = [
+        migrations.AlterModelOptions(
+            name='measurementpoint',
+            options={'ordering': ['device__name', 'bench', 'direction', 'quantity', 'axis', 'frequency_hz']},
+        ),
         migrations.RemoveConstraint(
             model_name='measurementpoint',
             name='point_unique_no_amplitude',
