@@ -173,12 +173,6 @@ def comparison_detail_data(comparison: Comparison, access: Any) -> dict[str, Any
 
 class MeasurementPointSerializer(serializers.ModelSerializer):
     device = serializers.CharField(source="device.name")
-    quantity = serializers.ChoiceField(
-        choices=list(quantities.NAMES),
-        help_text="What is measured at the point (docs/interfaces.md §1): magnitude (the "
-        "sensitivity), phase (of the sensitivity, degrees) or angular_rate (a gyroscope's "
-        "sensitivity)",
-    )
     unit = serializers.SerializerMethodField(
         help_text="Unit of the value: the device's for a magnitude, deg for a phase, "
         "D/(deg/s) for an angular rate"
