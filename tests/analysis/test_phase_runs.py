@@ -130,3 +130,30 @@ def test_api_and_downloads_carry_the_quantity(round_):
     assert template.status_code == 200
     reader = csv.DictReader(io.StringIO(template.content.decode("utf-8-sig")))
     assert sorted((r["quantity"], r["unit"]) for r in reader) == got
+
+
+def test_scores_api_filters_by_quantity_and_the_scores_page_names_the_kind(round_):
+    comparison, _, _ = round_
+    run = analysis_run_start(comparison=comparison, user=None)
+    run.refresh_from_db()
+    assert run.status == "succeeded", run.error
+    coordinator = UserFactory.create()
+    comparison.coordinators.add(coordinator)
+    client = Client()
+    client.force_login(coordinator)
+    answer = client.get(f"/api/v1/comparisons/{comparison.code}/scores/?quantity=phase")
+    assert answer.status_code == 200
+    rows = answer.json()["results"]
+    assert [(r["lab"], r["quantity"], r["d_percent"]) for r in rows] == [
+        ("L01", "phase", None), ("L02", "phase", None), ("L03", "phase", None)
+    ]  # fmt: skip
+    assert len(client.get(f"/api/v1/comparisons/{comparison.code}/scores/").json()["results"]) == 6
+    download = client.get(f"/coordinator/{comparison.code}/scores.csv")
+    assert download.status_code == 200
+    lines = download.content.decode("utf-8-sig").splitlines()
+    assert lines[0].split(",")[5:7] == ["direction", "quantity"]
+    assert sum(",phase," in line for line in lines) == 3
+    page = client.get(f"/coordinator/{comparison.code}/scores/?quantity=phase")
+    assert page.status_code == 200
+    body = page.content.decode()
+    assert body.count("tangential · phase") == 3
