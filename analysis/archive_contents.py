@@ -26,7 +26,7 @@ from django.db.models import Count, Q
 
 from analysis.access import download_name, reports_visible
 from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Report
-from analysis.selectors import SCORE_COLUMNS, score_records
+from analysis.selectors import score_columns_of, score_records
 from labs.access import ComparisonAccess
 from labs.importers import COLUMNS, write_table_to
 from labs.models import Participant, Result
@@ -174,7 +174,7 @@ def _results_entry(audience: Audience, n_scores: int) -> Entry:
 def _scores_entry(run: AnalysisRun, fmt: str, n_scores: int, when: dt.datetime) -> Entry:
     def write(out: BinaryIO) -> None:
         write_table_to(out, score_records(run, {}), format=fmt,  # type: ignore[arg-type]
-                       columns=SCORE_COLUMNS, when=when)  # fmt: skip
+                       columns=score_columns_of(run.comparison), when=when)  # fmt: skip
 
     return Entry(
         f"scores.{fmt}",

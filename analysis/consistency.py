@@ -22,11 +22,12 @@ core; only the records (one per point, one entry per laboratory) are built in Py
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from analysis import circular as circ
 from analysis.core import consistency as iso
 from analysis.core.groups import Groups
 from common.points import POINT_FIELDS
@@ -145,6 +146,9 @@ def iter_records(analysis: Analysis) -> Iterator[dict[str, Any]]:
 def point_records(
     table: ResultTable, groups: Groups, points: Sequence[tuple[Any, ...]]
 ) -> Iterator[dict[str, Any]]:
+    if table.circular.any():  # phases tested as unwrapped about their centre (domain.md §12)
+        linear = circ.linear_values(table.value, table.circular, groups)[0]
+        table = replace(table, value=linear)
     c = compute(table, groups)
     by_point = np.lexsort((c.lab, groups.index))  # each point's labs in code order
     bounds = np.concatenate(([0], np.cumsum(groups.counts())))
@@ -244,8 +248,8 @@ def statistic_text(value: float | None) -> str:
     return f"{value:#.3g}".rstrip(".").replace("e+0", "e+").replace("e-0", "e-")
 
 
-CSV_COLUMNS = ["device", "axis", "frequency_hz", "bench", "direction", "test", "side", "lab",
-               "statistic", "critical_5", "critical_1", "verdict", "reason"]  # fmt: skip
+CSV_COLUMNS = ["device", "axis", "frequency_hz", "bench", "direction", "quantity", "test", "side",
+               "lab", "statistic", "critical_5", "critical_1", "verdict", "reason"]  # fmt: skip
 _NO_REPEATS = "no repeat data from this laboratory"
 
 

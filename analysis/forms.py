@@ -10,7 +10,15 @@ from analysis.core.scores import FLAG_LABELS
 from analysis.graph_data import default_pair, point_choice_label
 from common.forms import BootstrapMixin
 from common.points import POINT_FIELDS, format_number
-from proficiency.models import Axis, Bench, Comparison, Direction, MeasurementPoint
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
+from proficiency.models import (
+    QUANTITY_CHOICES,
+    Axis,
+    Bench,
+    Comparison,
+    Direction,
+    MeasurementPoint,
+)
 
 ALL = [("", "All")]
 FACTORS = [
@@ -35,6 +43,7 @@ class ScoreFilterForm(BootstrapMixin, forms.Form):
     frequency_hz = forms.ChoiceField(required=False, label="Frequency (Hz)")
     bench = forms.ChoiceField(required=False, choices=ALL + list(Bench.choices))
     direction = forms.ChoiceField(required=False, choices=ALL + list(Direction.choices))
+    quantity = forms.ChoiceField(required=False, choices=ALL + QUANTITY_CHOICES)
     lab = forms.ChoiceField(required=False, label="Participant")
     flag = forms.ChoiceField(required=False, label="En flag", choices=ALL + FLAGS)
     z_flag = forms.ChoiceField(required=False, label="z / z′ flag", choices=ALL + FLAGS)
@@ -49,7 +58,9 @@ class ScoreFilterForm(BootstrapMixin, forms.Form):
         devices = comparison.devices.order_by("name").values_list("name", flat=True)
         # the levels the round has, in one query: frequencies and the three named levels
         present = set(
-            points.order_by().values_list("axis", "bench", "direction", "frequency_hz").distinct()
+            points.order_by()
+            .values_list("axis", "bench", "direction", "frequency_hz", "quantity")
+            .distinct()
         )
         freqs = sorted({row[3] for row in present})
         cast(forms.ChoiceField, self.fields["device"]).choices = ALL + [(d, d) for d in devices]
@@ -58,11 +69,18 @@ class ScoreFilterForm(BootstrapMixin, forms.Form):
         ]
         cast(forms.ChoiceField, self.fields["lab"]).choices = ALL + [(c, c) for c in lab_codes]
         for i, (name, levels) in enumerate(
-            (("axis", Axis), ("bench", Bench), ("direction", Direction))
+            (("axis", Axis.choices), ("bench", Bench.choices), ("direction", Direction.choices))
         ):
             values = {row[i] for row in present}
             cast(forms.ChoiceField, self.fields[name]).choices = ALL + [
-                (value, label) for value, label in levels.choices if value in values
+                (value, label) for value, label in levels if value in values
+            ]
+        kinds = {row[4] for row in present}
+        if kinds == {DEFAULT_QUANTITY}:  # a round of magnitudes: no kind to choose
+            del self.fields["quantity"]
+        else:
+            cast(forms.ChoiceField, self.fields["quantity"]).choices = ALL + [
+                (value, label) for value, label in QUANTITY_CHOICES if value in kinds
             ]
 
     def filters(self) -> dict[str, str]:

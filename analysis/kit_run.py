@@ -37,6 +37,7 @@ from analysis.kit_link import LinkInput, link_point
 from analysis.models import AnalysisRun, KitPointFit, KitScore
 from analysis.selectors import LoadedRound
 from common.errors import ValidationFailed
+from common.quantities import is_circular
 from labs.models import Handover, KitMeasurement, KitSlot
 from proficiency.models import Comparison, DriftTreatment, Kit, KitItem
 
@@ -177,7 +178,8 @@ class Repeats:
 
 def _repeats(rnd: Round, loaded: LoadedRound) -> Repeats:
     index = {k.pk: i for i, k in enumerate(rnd.kits)}
-    group_of = {int(p): g for g, p in enumerate(loaded.point_ids)}
+    # a phase lives on a circle: its drift and its link are not fitted on a line (below)
+    group_of = {int(p.pk): g for g, p in enumerate(loaded.points) if not is_circular(p.quantity)}
     rows = (KitMeasurement.objects.filter(kit__in=rnd.kits,
                                           measurement_point_id__in=list(group_of))
             .order_by("kit", "measurement_point", "measured_on")
@@ -259,7 +261,12 @@ def _prepare(run: AnalysisRun, rnd: Round, loaded: LoadedRound) -> tuple[LoadedR
         fit = KitPointFit(run=run, measurement_point=point, drift=_drift_rows(rnd, drift, g),
                           notes=notes)  # fmt: skip
         linked = None
-        if len(rnd.kits) >= 2:
+        if len(rnd.kits) >= 2 and is_circular(point.quantity):
+            notes.append(
+                "a phase is not linked across kits: its scores are against the "
+                "round's assigned value (docs/domain.md §14)"
+            )
+        elif len(rnd.kits) >= 2:
             take = repeats_of.get(g, np.zeros(0, dtype=np.intp))
             linked = link_point(LinkInput(
                 method=point.assigned_value_method or run.comparison.assigned_value_method,

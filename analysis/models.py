@@ -204,7 +204,8 @@ class Score(models.Model):
         Result, on_delete=models.CASCADE, related_name="scores", db_constraint=False
     )
     d = models.FloatField()
-    d_percent = models.FloatField()
+    # NULL for a phase: a per cent of an angle means nothing (docs/domain.md §12)
+    d_percent = models.FloatField(null=True, blank=True)
     en = models.FloatField()
     zeta = models.FloatField()
     z = models.FloatField(null=True, blank=True)

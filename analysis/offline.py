@@ -28,12 +28,14 @@ from analysis.pipeline import (
     score_columns,
     to_json,
 )
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
+from common.quantities import shown_group
 from common.sizes import counted
 from labs.importers import write_table
 from labs.importers.values import escape_text
 
 SCORE_COLUMNS = [
-    "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
+    "lab", "device", "axis", "frequency_hz", "bench", "direction", "quantity", "value",
     "expanded_uncertainty", "x_pt", "u_x_pt", "method", "d", "d_percent", "en", "zeta", "z",
     "z_prime", "flag", "z_flag", "correlation_applied", "correlation_failed", "in_assigned_value",
     "exhaustive",
@@ -172,6 +174,8 @@ def _score_table(analysis: Analysis) -> tuple[list[np.ndarray], np.ndarray]:
         "u_x_pt": _finite_or_none(a.standard_uncertainty)[index],
         "method": methods.astype(object)[index],
         "exhaustive": _point_diagnostic(a.diagnostics.get("exhaustive"), n_points)[index],
+        # a phase has no D% (docs/domain.md §12): an empty cell, as a missing x_pt
+        "d_percent": _finite_or_none(columns["d_percent"]),
     }
     return [columns[name] for name in SCORE_COLUMNS], has_sigma
 
@@ -232,7 +236,15 @@ def _matrix_pairs(matrices: list[dict[str, Any]], limits: list[float]) -> list[d
 
 
 def _point(rec: dict[str, Any]) -> tuple[Any, ...]:
-    return (rec["device"], rec["axis"], rec["frequency_hz"], rec["bench"], rec["direction"])
+    return (rec["device"], rec["axis"], rec["frequency_hz"], rec["bench"], rec["direction"],
+            rec.get("quantity", DEFAULT_QUANTITY))  # fmt: skip
+
+
+def _direction(rec: dict[str, Any]) -> str:
+    """The direction column of the text table, with the quantity kind where it is not the
+    magnitude (``tangential, phase``)."""
+    quantity = rec.get("quantity", DEFAULT_QUANTITY)
+    return rec["direction"] if quantity == DEFAULT_QUANTITY else f"{rec['direction']}, {quantity}"
 
 
 _MATRIX_KEYS = {
@@ -241,7 +253,10 @@ _MATRIX_KEYS = {
 
 
 def _group_label(m: dict[str, Any]) -> str:
-    parts = [f"{k}={_fmt(v)}" for k, v in m.items() if k not in _MATRIX_KEYS]
+    """``device=MEMS 1, axis=X``: the group's keys, the quantity only where it is not the
+    magnitude (a table of magnitudes reads as before kinds existed)."""
+    group = shown_group({k: v for k, v in m.items() if k not in _MATRIX_KEYS})
+    parts = [f"{k}={_fmt(v)}" for k, v in group.items()]
     return ", ".join(parts) or "all results"
 
 
@@ -296,7 +311,7 @@ def render_table(doc: dict[str, list[dict[str, Any]]]) -> str:
         parts.append(approximate_warning(n).capitalize())
     parts.append(_table(
         ["device", "axis", "f/Hz", "bench", "direction", "x_pt", "u(x_pt)", "n", "method"],
-        [[a["device"], a["axis"], f"{a['frequency_hz']:g}", a["bench"], a["direction"], a["value"],
+        [[a["device"], a["axis"], f"{a['frequency_hz']:g}", a["bench"], _direction(a), a["value"],
           a["standard_uncertainty"], a["n"], a["method"]] for a in doc["assigned_values"]],
     ))  # fmt: skip
     parts += ["", "SCORES (flag from En)"]
@@ -304,7 +319,7 @@ def render_table(doc: dict[str, list[dict[str, Any]]]) -> str:
     headers = ["lab", "device", "axis", "f/Hz", "bench", "direction", "value", "U", "d", "En",
                "zeta"] + (["z"] if with_z else []) + ["flag"]  # fmt: skip
     parts.append(_table(headers, [
-        [s["lab"], s["device"], s["axis"], f"{s['frequency_hz']:g}", s["bench"], s["direction"],
+        [s["lab"], s["device"], s["axis"], f"{s['frequency_hz']:g}", s["bench"], _direction(s),
          s["value"], s["expanded_uncertainty"], s["d"], s["en"], s["zeta"]]
         + ([s.get("z")] if with_z else []) + [s["flag"]]
         for s in doc["scores"]

@@ -21,6 +21,7 @@ from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Sco
 from analysis.pipeline import Analysis, excluded_labs, json_value, matrix_record, point_method_of
 from analysis.selectors import LoadedRound
 from common.points import POINT_FIELDS
+from common.quantities import shown_group
 
 BATCH = 5000
 _FLAGS = np.array([s.encode() for s in FLAG_LABELS])
@@ -68,7 +69,7 @@ def score_columns(run_id: int, loaded: LoadedRound, a: Analysis) -> list[Column]
         Column("run_id", "i8", np.full(n, run_id, dtype=np.int64)),
         Column("result_id", "i8", loaded.result_id),
         Column("d", "f8", s.d),
-        Column("d_percent", "f8", s.d_percent),
+        Column("d_percent", "f8", s.d_percent, null=np.isnan(s.d_percent)),  # a phase: none
         Column("en", "f8", s.en),
         Column("zeta", "f8", s.zeta),
         Column("z", "f8", s.z, null=no_sigma),
@@ -140,6 +141,13 @@ def moments_from_json(parts: list[dict[str, list]]) -> tuple[np.ndarray, Moments
     )
 
 
+def group_key(group: dict[str, Any]) -> str:
+    """``device=MEMS 1, axis=X``: a matrix's group as text, the quantity kind only where it
+    is not the magnitude (the keys of a round of magnitudes are those of before kinds)."""
+    parts = [f"{k}={v}" for k, v in shown_group(group).items()]
+    return ", ".join(parts) or "all"
+
+
 def matrix_rows(run: AnalysisRun, matrices: list[CoreMatrix]) -> list[CompatibilityMatrix]:
     rows = []
     for rec in map(matrix_record, matrices):
@@ -149,7 +157,7 @@ def matrix_rows(run: AnalysisRun, matrices: list[CoreMatrix]) -> list[Compatibil
                 run=run,
                 factor=rec["factor"],
                 group=group,
-                group_key=", ".join(f"{k}={v}" for k, v in group.items()) or "all",
+                group_key=group_key(group),
                 levels=rec["levels"],
                 values=rec["value"],
                 expanded_uncertainties=rec["expanded_uncertainty"],

@@ -10,21 +10,24 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from itertools import repeat
 from typing import Any
 
 import numpy as np
 
+from analysis import circular as circ
 from analysis.consistency import consistency_records
 from analysis.core import assigned as av
 from analysis.core import robust
 from analysis.core.compatibility import CompatibilityMatrix, compatibility_matrices
-from analysis.core.groups import CoreInputError, FloatArray, Groups
+from analysis.core.groups import BoolArray, CoreInputError, FloatArray, Groups
 from analysis.core.pooled import Moments
 from analysis.core.scores import FLAG_LABELS, Scores, compute_scores
 from analysis.core.types import AssignedValues
 from common.points import POINT_FIELDS, point_label
+from common.quantities import CIRCULAR
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
 from common.sizes import counted
 from labs.importers import ResultRow
 
@@ -50,6 +53,12 @@ class ResultTable:
     coverage_factor: FloatArray
     repeat_sd: FloatArray  # NaN where the laboratory gave no repeat data
     n_repeats: np.ndarray  # integers, 0 where the laboratory gave no repeat data
+    #: the point's quantity kind (common.quantities); left out: every result a magnitude
+    quantity: np.ndarray = field(default_factory=lambda: np.zeros(0, np.str_))
+
+    def __post_init__(self) -> None:
+        if self.quantity.size != self.value.size:
+            object.__setattr__(self, "quantity", np.full(self.value.size, DEFAULT_QUANTITY))
 
     @classmethod
     def from_rows(cls, rows: Sequence[ResultRow]) -> ResultTable:
@@ -68,6 +77,7 @@ class ResultTable:
             coverage_factor=col("coverage_factor", np.float64),
             repeat_sd=np.array([r.repeat_sd or np.nan for r in rows], dtype=np.float64),
             n_repeats=np.array([r.n_repeats or 0 for r in rows], dtype=np.int64),
+            quantity=col("quantity"),
         )
 
     @property
@@ -82,9 +92,17 @@ class ResultTable:
             "frequency_hz": self.frequency_hz,
             "bench": self.bench,
             "direction": self.direction,
+            "quantity": self.quantity,
             "value": self.value,
             "standard_uncertainty": self.standard_uncertainty,
         }
+
+    @property
+    def circular(self) -> BoolArray:
+        """Per result: whether its kind is circular (a phase, docs/domain.md §12)."""
+        if not CIRCULAR:
+            return np.zeros(self.value.size, dtype=bool)
+        return np.isin(self.quantity, list(CIRCULAR))
 
 
 @dataclass(frozen=True)
@@ -211,12 +229,14 @@ def analyse(
     en_limit: float = 1.0,
     compare: Sequence[tuple[str, Sequence[str] | None]] = (),
 ) -> Analysis:
-    """Assigned values and scores for every measurement point, plus the requested matrices."""
+    """Assigned values and scores for every measurement point (device, axis, frequency,
+    bench, direction and quantity kind), plus the requested matrices."""
     groups, points = Groups.from_labels(
-        table.device, table.axis, table.frequency_hz, table.bench, table.direction
-    )
+        table.device, table.axis, table.frequency_hz, table.bench, table.direction,
+        table.quantity,
+    )  # fmt: skip
     values = assigned_values(table, groups, points, assigned)
-    sigma = sigma_pt_values(table.value, groups, values, sigma_pt)
+    sigma = sigma_pt_values(linear_values_of(table, groups), groups, values, sigma_pt)
     return analyse_grouped(
         table, groups, points, values, sigma=sigma, en_limit=en_limit, compare=compare
     )
@@ -232,8 +252,11 @@ def analyse_grouped(
     en_limit: float = 1.0,
     compare: Sequence[tuple[str, Sequence[str] | None]] = (),
 ) -> Analysis:
-    """Scores and matrices for results already grouped, with their assigned values."""
-    x, u = table.value, table.standard_uncertainty
+    """Scores and matrices for results already grouped, with their assigned values; a
+    phase's D is the wrapped difference and it has no D% (docs/domain.md §12)."""
+    is_circular = table.circular
+    x = circ.score_values(table.value, is_circular, groups, values.value)
+    u = table.standard_uncertainty
     contributes = _contributes(values)
     scores = compute_scores(
         x,
@@ -246,13 +269,21 @@ def analyse_grouped(
         sigma_pt=sigma,
         contributes=contributes,
         en_limit=en_limit,
+        relative=~circ.circular_groups(is_circular, groups),
     )
+    linear = replace(table, value=linear_values_of(table, groups)) if is_circular.any() else table
     matrices = [
         m
         for factor, by in compare
-        for m in compatibility_matrices(table.columns(), factor, by, limit=en_limit)
+        for m in compatibility_matrices(linear.columns(), factor, by, limit=en_limit)
     ]
     return Analysis(table, groups, points, values, sigma, scores, matrices)
+
+
+def linear_values_of(table: ResultTable, groups: Groups) -> FloatArray:
+    """The values the linear statistics take: phases unwrapped about their point's circular
+    mean, every other value as it is (:func:`analysis.circular.linear_values`)."""
+    return circ.linear_values(table.value, table.circular, groups)[0]
 
 
 def _contributes(values: AssignedValues) -> np.ndarray | None:
@@ -306,6 +337,22 @@ _CORRELATED = frozenset({"weighted_mean", "largest_consistent_subset", "referenc
 
 
 def assigned_values(
+    table: ResultTable, groups: Groups, points: list[tuple[Any, ...]], spec: AssignedSpec
+) -> AssignedValues:
+    """x_pt by ``spec`` at every point; at a phase's point computed on the phases unwrapped
+    about their circular mean and wrapped back (docs/domain.md §12)."""
+    is_circular = table.circular
+    if not is_circular.any():
+        return _assigned_linear(table, groups, points, spec)
+    x, no_centre = circ.linear_values(table.value, is_circular, groups)
+    if no_centre.any() and spec.method not in circ.NO_CENTRE_NEEDED:
+        raise CoreInputError(circ.no_centre_message(points, no_centre))
+    values = _assigned_linear(replace(table, value=x), groups, points, spec)
+    wrapped = circ.wrap_groups(values.value, circ.circular_groups(is_circular, groups))
+    return replace(values, value=wrapped)
+
+
+def _assigned_linear(
     table: ResultTable, groups: Groups, points: list[tuple[Any, ...]], spec: AssignedSpec
 ) -> AssignedValues:
     x, u = table.value, table.standard_uncertainty
@@ -410,7 +457,9 @@ def nonfinite_points(analysis: Analysis, m: Moments) -> np.ndarray:
     bad = ~(np.isfinite(v.value) & np.isfinite(v.standard_uncertainty))
     bad |= np.isinf(analysis.sigma_pt)
     bad |= ~(np.isfinite(m.sum_x) & np.isfinite(m.sum_u) & np.isfinite(m.m2))
-    per_result = ~(np.isfinite(s.d) & np.isfinite(s.d_percent) & np.isfinite(s.en))
+    # a phase has no D% (NaN by design, docs/domain.md §12)
+    d_percent_ok = np.isfinite(s.d_percent) | analysis.table.circular
+    per_result = ~(np.isfinite(s.d) & d_percent_ok & np.isfinite(s.en))
     per_result |= ~np.isfinite(s.zeta)
     with_z = np.isfinite(analysis.sigma_pt)[groups.index]
     per_result |= with_z & ~(np.isfinite(s.z) & np.isfinite(s.z_prime))
@@ -534,6 +583,7 @@ def score_columns(analysis: Analysis) -> tuple[dict[str, np.ndarray], np.ndarray
         "frequency_hz": t.frequency_hz.astype(f64, copy=False),
         "bench": t.bench,
         "direction": t.direction,
+        "quantity": t.quantity,
         "lab": t.lab,
         "value": t.value.astype(f64, copy=False),
         "expanded_uncertainty": t.expanded_uncertainty.astype(f64, copy=False),

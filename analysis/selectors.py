@@ -30,7 +30,7 @@ from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Sco
 from analysis.pipeline import AssignedSpec, ResultTable
 from common.errors import ValidationFailed
 from labs.models import Result, Submission
-from labs.selectors import current_submissions
+from labs.selectors import current_submissions, has_other_kinds
 from proficiency.models import AssignedValueMethod, Comparison, MeasurementPoint
 
 _RESULT_COLUMNS = (
@@ -177,6 +177,7 @@ def _table(
         frequency_hz=per_point(lambda p: p.frequency_hz, np.float64),
         bench=per_point(lambda p: p.bench),
         direction=per_point(lambda p: p.direction),
+        quantity=per_point(lambda p: p.quantity),
         value=value,
         expanded_uncertainty=big_u,
         coverage_factor=k,
@@ -239,6 +240,7 @@ SCORE_FILTERS = {
     "frequency_hz": "result__measurement_point__frequency_hz",
     "bench": "result__measurement_point__bench",
     "direction": "result__measurement_point__direction",
+    "quantity": "result__measurement_point__quantity",
     "lab": "result__submission__participant__code",
     "flag": "flag",
     "z_flag": "z_flag",
@@ -247,6 +249,7 @@ POINT_ORDER_OF_SCORES = (
     "result__measurement_point__device__name",
     "result__measurement_point__bench",
     "result__measurement_point__direction",
+    "result__measurement_point__quantity",
     "result__measurement_point__axis",
     "result__measurement_point__frequency_hz",
     "result__submission__participant__code",
@@ -319,6 +322,15 @@ SCORE_COLUMNS = [
 ]  # fmt: skip
 
 
+def score_columns_of(comparison: Comparison) -> list[str]:
+    """:data:`SCORE_COLUMNS`, with ``quantity`` after ``direction`` where the comparison has
+    a point of another kind than the magnitude (a download of magnitudes reads as before)."""
+    if not has_other_kinds(comparison):
+        return SCORE_COLUMNS
+    at = SCORE_COLUMNS.index("direction") + 1
+    return [*SCORE_COLUMNS[:at], "quantity", *SCORE_COLUMNS[at:]]
+
+
 def score_records(run: AnalysisRun, filters: dict[str, str]) -> Iterator[dict[str, Any]]:
     """The scores download's rows (:data:`SCORE_COLUMNS`), one per score of ``run_scores``,
     with the point's assigned value: read 5,000 scores at a time, never all at once."""
@@ -332,7 +344,8 @@ def score_records(run: AnalysisRun, filters: dict[str, str]) -> Iterator[dict[st
         yield {
             "lab": r.submission.participant.code, "device": p.device.name, "axis": p.axis,
             "frequency_hz": p.frequency_hz, "bench": p.bench, "direction": p.direction,
-            "sensitivity": r.value, "unit": r.unit, "expanded_uncertainty": r.expanded_uncertainty,
+            "quantity": p.quantity, "sensitivity": r.value, "unit": r.unit,
+            "expanded_uncertainty": r.expanded_uncertainty,
             "coverage_factor": r.coverage_factor, "assigned_value": x_pt,
             "assigned_standard_uncertainty": u_pt, "assigned_expanded_uncertainty": big_u_pt,
             "d": s.d, "d_percent": s.d_percent, "en": s.en, "zeta": s.zeta, "z": s.z,

@@ -73,6 +73,7 @@ from analysis.pipeline import (
     SigmaPtSpec,
     analyse_grouped,
     assigned_values_mixed,
+    linear_values_of,
     nonfinite_points,
     overflowing_results,
     sigma_pt_values,
@@ -88,6 +89,7 @@ from common import jobs
 from common.errors import ApplicationError, StateConflict, ValidationFailed
 from common.jobs import heartbeat
 from common.points import POINT_LOOKUPS
+from common.quantities import shown_group
 from labs.models import Result
 from labs.selectors import current_submissions
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint, SigmaPtMode
@@ -524,6 +526,7 @@ def _matrices(run: AnalysisRun, parts: list[dict]) -> list:
         "frequency_hz": np.array(cols[2], dtype=np.float64),
         "bench": np.array(cols[3], dtype=np.str_),
         "direction": np.array(cols[4], dtype=np.str_),
+        "quantity": np.array(cols[5], dtype=np.str_),
     }
     limit = run.comparison.en_limit
     return [
@@ -538,7 +541,8 @@ def _check_matrices(matrices: list) -> None:
     for m in matrices:
         numbers = (np.asarray(m.value), np.asarray(m.expanded_uncertainty), np.asarray(m.en))
         if not all(np.isfinite(a).all() for a in numbers):
-            group = ", ".join(f"{k} {v}" for k, v in m.group.items()) or "the whole round"
+            shown = shown_group(m.group).items()
+            group = ", ".join(f"{k} {v}" for k, v in shown) or "the whole round"
             raise ValidationFailed(
                 f"The {m.factor} compatibility matrix of {group} is not finite: the results "
                 "pooled there are too large or their uncertainties too small to compute with. "
@@ -641,7 +645,8 @@ def _compute_checked(run: AnalysisRun, loaded: LoadedRound) -> tuple[Analysis, M
     with np.errstate(all="ignore"):  # overflow is checked below, where it can be named
         try:
             a = _compute(run, loaded)
-            m = moments(loaded.table.value, loaded.table.standard_uncertainty, loaded.groups)
+            linear = linear_values_of(loaded.table, loaded.groups)  # phases: docs/domain.md §12
+            m = moments(linear, loaded.table.standard_uncertainty, loaded.groups)
         except CoreInputError as exc:
             extreme = overflowing_results(loaded.table)
             if extreme.any():
@@ -717,7 +722,8 @@ def _sigma(comparison: Comparison, loaded: LoadedRound, values: Any) -> np.ndarr
     spec = SigmaPtSpec() if mode == SigmaPtMode.NONE else SigmaPtSpec(mode, value)
     override = np.array([p.sigma_pt_value or np.nan for p in loaded.points], dtype=float)
     try:
-        return sigma_pt_values(loaded.table.value, loaded.groups, values, spec, override)
+        linear = linear_values_of(loaded.table, loaded.groups)
+        return sigma_pt_values(linear, loaded.groups, values, spec, override)
     except DegenerateScaleError as exc:
         names = "; ".join(str(loaded.points[g]) for g in exc.groups[:10])
         more = f"; and {len(exc.groups) - 10} more" if len(exc.groups) > 10 else ""

@@ -37,18 +37,19 @@ from analysis.performance import lab_performance, performance
 from analysis.publication import active_publication, publication_start
 from analysis.selectors import (
     EXACT_MAX,
-    SCORE_COLUMNS,
     approximate_subsets,
     current_run,
     lab_matrices,
     run_consistency,
     run_matrices,
     run_scores,
+    score_columns_of,
     score_records,
 )
 from analysis.services import analysis_run_cancel, analysis_run_start
 from analysis.viewer import COORDINATOR, Viewer
 from common.errors import ApplicationError
+from common.quantities import shown_group
 from labs.access import coordinated, coordinated_comparisons, published_participation
 from labs.importers import write_table
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
@@ -228,6 +229,8 @@ def _bench_rows(run: AnalysisRun) -> list[dict]:
     """Linear vs curvilinear per device and axis (the study's Table 2, here for all labs)."""
     rows = []
     for m in run_matrices(run, "bench", {}):
+        if shown_group(m.group).get("quantity"):  # the study's table is of magnitudes
+            continue
         at = {level: i for i, level in enumerate(m.levels)}
         if not {"linear", "curvilinear"} <= at.keys():
             continue
@@ -353,7 +356,8 @@ def scores_download(
         raise Http404(f"{code} has no analysed results yet.")
     form = ScoreFilterForm(request.GET, comparison=viewer.comparison, lab_codes=_lab_codes(viewer))
     records = score_records(viewer.run, form.filters())
-    data = write_table(records, format=fmt, columns=SCORE_COLUMNS)  # type: ignore[arg-type]
+    columns = score_columns_of(viewer.comparison)
+    data = write_table(records, format=fmt, columns=columns)  # type: ignore[arg-type]
     response = HttpResponse(data, content_type=CONTENT_TYPES[fmt])
     name = f"{viewer.comparison.code}-scores-run{viewer.run.pk}.{fmt}"
     response["Content-Disposition"] = f'attachment; filename="{name}"'
@@ -391,7 +395,8 @@ def _matrices(viewer: Viewer, form: CompatibilityForm) -> tuple[list, str]:
         except ApplicationError as exc:
             return [], exc.message
         return [(", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
-                           for k, v in m.group.items()), m) for m in found], ""  # fmt: skip
+                           for k, v in shown_group(m.group).items()), m)
+                for m in found], ""  # fmt: skip
     filters = {k: v for k, v in form.filters().items() if k != "lab"}
     return [(m.group_key, m) for m in run_matrices(viewer.run, factor, filters)], ""
 

@@ -17,6 +17,8 @@ from rest_framework.response import Response
 
 from common.api import valid_data
 from common.errors import ValidationFailed
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
+from common.quantities import NAMES as KIND_NAMES
 from labs.access import require_coordinator
 from labs.api.serializers import ScopeSerializer
 from labs.api.views import ApiView
@@ -70,6 +72,11 @@ class GridSerializer(serializers.Serializer):
     frequencies_hz = serializers.ListField(child=serializers.FloatField(), required=False)
     benches = serializers.ListField(child=serializers.CharField(), required=False)
     directions = serializers.ListField(child=serializers.CharField(), required=False)
+    quantities = serializers.ListField(
+        child=serializers.CharField(), required=False,
+        help_text=f"the quantity kinds of the points, of {', '.join(KIND_NAMES)} (default: "
+        "magnitude); with a template, among those its benches offer",
+    )  # fmt: skip
 
 
 class PointsGenerate(ApiView):
@@ -85,8 +92,9 @@ class PointsGenerate(ApiView):
                        else c.devices.all())  # fmt: skip
         if data.get("template"):
             new = comparison_apply_template(
-                comparison=c, template_key=data["template"], devices=devices
-            )
+                comparison=c, template_key=data["template"], devices=devices,
+                quantities=data.get("quantities", [DEFAULT_QUANTITY]),
+            )  # fmt: skip
         else:
             new = measurement_points_generate(
                 comparison=c,
@@ -95,6 +103,7 @@ class PointsGenerate(ApiView):
                 frequencies_hz=data.get("frequencies_hz", []),
                 benches=data.get("benches", []),
                 directions=data.get("directions"),
+                quantities=data.get("quantities", [DEFAULT_QUANTITY]),
             )
         body = {"created": len(new), "measurement_points": c.measurement_points.count()}
         return Response(body, status=status.HTTP_201_CREATED)

@@ -243,7 +243,7 @@ class _Import:
     def _points(self, comparison: Comparison) -> None:
         fields = (*POINT_LOOKUPS, "amplitude_m_s2")
         pk_by_key = {
-            PointKey(*key): pk
+            PointKey.from_fields(key[:-1], key[-1]): pk
             for pk, *key in comparison.measurement_points.values_list("pk", *fields).iterator(
                 chunk_size=10_000
             )

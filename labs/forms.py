@@ -130,6 +130,7 @@ class ResultGridForm(forms.Form):
                 "frequency_hz": point.frequency_hz,
                 "bench": point.bench,
                 "direction": point.direction,
+                "quantity": point.quantity,
                 "amplitude_m_s2": point.amplitude_m_s2,
             }
             for column in GRID_COLUMNS:

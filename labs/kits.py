@@ -25,6 +25,7 @@ from django.utils import timezone
 
 from analysis.core.drift import DriftFit, drift_fit
 from analysis.core.groups import CoreInputError, Groups
+from common import quantities
 from common.errors import StateConflict, ValidationFailed
 from common.points import PointKey, point_label
 from labs.models import Handover, KitMeasurement, KitSlot, Participant
@@ -279,6 +280,14 @@ def _finite(text: str, what: str, *, positive: bool = False) -> float:
     return value
 
 
+def _quantity(text: str) -> str:
+    """The optional quantity column of a pilot's file (blank or absent: the magnitude)."""
+    try:
+        return quantities.parse(text)
+    except ValueError as problem:
+        raise ValueError(f"quantity {problem}") from None
+
+
 def _measurement(kit: Kit, row: dict[str, str], points: dict[PointKey, int]) -> KitMeasurement:
     def cell(name: str) -> str:
         return (row.get(name) or "").strip()
@@ -287,7 +296,7 @@ def _measurement(kit: Kit, row: dict[str, str], points: dict[PointKey, int]) -> 
     amplitude = _finite(text, "amplitude_m_s2", positive=True) if text else None
     frequency = _finite(cell("frequency_hz"), "frequency_hz", positive=True)
     key = PointKey(cell("device"), cell("axis"), frequency, cell("bench"), cell("direction"),
-                   amplitude)  # fmt: skip
+                   amplitude, _quantity(cell("quantity")))  # fmt: skip
     point = points.get(key)
     if point is None:
         raise ValueError(f"{point_label(key)} is not a measurement point of this round")
@@ -300,7 +309,7 @@ def _measurement(kit: Kit, row: dict[str, str], points: dict[PointKey, int]) -> 
     k = cell("coverage_factor")
     return KitMeasurement(
         kit=kit, measurement_point_id=point, measured_on=measured_on,
-        value=_finite(cell("sensitivity"), "sensitivity"),
+        value=quantities.stored_value(key.quantity, _finite(cell("sensitivity"), "sensitivity")),
         expanded_uncertainty=_finite(cell("expanded_uncertainty"), "expanded_uncertainty",
                                      positive=True),
         coverage_factor=_finite(k, "coverage_factor", positive=True) if k else 2.0,
@@ -311,8 +320,9 @@ def _measurement(kit: Kit, row: dict[str, str], points: dict[PointKey, int]) -> 
 def kit_measurements_replace(*, kit: Kit, text: str) -> int:
     """Replace the pilot's measurements of ``kit`` with the CSV ``text``: a header line
     naming the columns (:data:`MEASUREMENT_COLUMNS`, in any order; ``amplitude_m_s2`` for
-    points that have one, ``coverage_factor`` optional), then one line per measurement.
-    Every bad line is named and nothing is stored unless all are good."""
+    points that have one, ``coverage_factor`` optional, ``quantity`` optional: blank or
+    absent is the magnitude, a phase is stored wrapped into (−180°, 180°]), then one line
+    per measurement.  Every bad line is named and nothing is stored unless all are good."""
     try:
         return _measurements_store(kit, csv.DictReader(io.StringIO(text)))
     except csv.Error as exc:  # a field over csv's limit, a broken quote: say so, store nothing

@@ -12,7 +12,13 @@ from rest_framework_api_key.models import AbstractAPIKey, APIKeyManager
 
 from common.rows import JoinedQuery, ModelColumns
 from labs.importers.schema import ENTERED_MAX_CHARS
-from proficiency.models import Comparison, Device, MeasurementPoint, finite_positive
+from proficiency.models import (
+    FLOAT_MAX,
+    Comparison,
+    Device,
+    MeasurementPoint,
+    finite_positive,
+)
 
 
 class Laboratory(models.Model):
@@ -214,7 +220,12 @@ class Result(models.Model):
             models.UniqueConstraint(
                 fields=["submission", "measurement_point"], name="result_one_per_point"
             ),
-            models.CheckConstraint(condition=finite_positive("value"), name="result_value_pos"),
+            # > 0 for a magnitude, any finite number for a phase (the importers check the
+            # point's quantity kind, docs/interfaces.md §1); finite here for every kind
+            models.CheckConstraint(
+                condition=Q(value__gte=-FLOAT_MAX) & Q(value__lte=FLOAT_MAX),
+                name="result_value_finite",
+            ),
             models.CheckConstraint(
                 condition=finite_positive("expanded_uncertainty"), name="result_U_pos"
             ),

@@ -10,9 +10,11 @@ from django.db.models import (
     BigIntegerField,
     BooleanField,
     Case,
+    CharField,
     Count,
     Exists,
     Expression,
+    F,
     Max,
     OuterRef,
     Q,
@@ -24,8 +26,11 @@ from django.db.models import (
 )
 from django.db.models.functions import Cast, Substr
 
+from common import quantities
 from common.errors import NotVisible
 from common.points import POINT_LOOKUPS, format_number
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
+from common.quantities import point_unit
 from common.rows import JoinedQuery, ModelColumns
 from labs.importers import COLUMNS, PointKey, ResultRow, TableContext, write_table
 from labs.models import Enrolment, Laboratory, Notice, Participant, Result, Submission
@@ -61,6 +66,7 @@ def comparison_result_rows(
             "measurement_point__frequency_hz",
             "measurement_point__bench",
             "measurement_point__direction",
+            "measurement_point__quantity",
             "measurement_point__amplitude_m_s2",
             "value",
             "unit",
@@ -81,6 +87,7 @@ def comparison_result_rows(
             frequency_hz=f,
             bench=bench,
             direction=direction,
+            quantity=quantity,
             amplitude_m_s2=amp,
             sensitivity=value,
             unit=unit,
@@ -98,6 +105,7 @@ def comparison_result_rows(
             f,
             bench,
             direction,
+            quantity,
             amp,
             value,
             unit,
@@ -149,6 +157,18 @@ def scope_levels_filter(
         if values:
             q &= Q(**{lookup: list(values)})
     return q
+
+
+def point_unit_expression(prefix: str = "") -> Expression:
+    """A point's unit in SQL, as ``common.quantities.point_unit`` gives it: the kind's own
+    unit (deg for a phase) or else its device's; ``prefix`` reaches the point from another
+    model (``measurement_point__``)."""
+    cases = [
+        When(**{f"{prefix}quantity": k.name}, then=Value(k.default_unit))
+        for k in quantities.KINDS
+        if k.units
+    ]
+    return Case(*cases, default=F(f"{prefix}device__unit"), output_field=CharField())
 
 
 def scope_flag(participant: Participant | None, *, default: bool | None = None) -> Expression:
@@ -337,7 +357,7 @@ def comparison_table(
     gets the whole comparison's context, with no further query."""
     rows = (
         comparison.measurement_points.order_by(
-            "device__name", "bench", "direction", "axis", "frequency_hz", "pk"
+            "device__name", "bench", "direction", "axis", "frequency_hz", "quantity", "pk"
         )
         .annotate(in_scope=scope_flag(participant, default=True))
         .values_list("pk", "device__unit", *POINT_LOOKUPS, "amplitude_m_s2", "in_scope")
@@ -346,8 +366,8 @@ def comparison_table(
     scoped: list[PointKey] = []
     units: dict[str, str] = {}
     point_ids: dict[PointKey, int] = {}
-    for pk, unit, *fields, inside in rows:
-        key = PointKey(*fields)
+    for pk, unit, *fields, amplitude, inside in rows:
+        key = PointKey.from_fields(fields, amplitude)
         keys.append(key)
         if inside:
             scoped.append(key)
@@ -436,8 +456,9 @@ def results_template(
         else comparison.measurement_points.select_related("device")
     )
     points = chosen.order_by(
-        "device__name", "bench", "direction", "axis", "frequency_hz", "amplitude_m_s2", "pk"
-    )
+        "device__name", "bench", "direction", "axis", "frequency_hz", "quantity",
+        "amplitude_m_s2", "pk",
+    )  # fmt: skip
     rows = (
         {
             "device": p.device.name,
@@ -445,10 +466,20 @@ def results_template(
             "frequency_hz": p.frequency_hz,
             "bench": p.bench,
             "direction": p.direction,
+            "quantity": p.quantity,
             "amplitude_m_s2": p.amplitude_m_s2,
-            "unit": p.device.unit,
+            "unit": point_unit(p.quantity, p.device.unit),
             "coverage_factor": 2,
         }
         for p in points
     )
-    return write_table(rows, format=format, columns=TEMPLATE_COLUMNS)  # type: ignore[arg-type]
+    columns = TEMPLATE_COLUMNS
+    if not has_other_kinds(comparison):  # a round of magnitudes: the template as before
+        columns = [c for c in TEMPLATE_COLUMNS if c != "quantity"]
+    return write_table(rows, format=format, columns=columns)  # type: ignore[arg-type]
+
+
+def has_other_kinds(comparison: Comparison) -> bool:
+    """Whether a point of the comparison is of another kind than the magnitude: its
+    templates and downloads then carry the ``quantity`` column (docs/interfaces.md §1)."""
+    return comparison.measurement_points.exclude(quantity=DEFAULT_QUANTITY).exists()

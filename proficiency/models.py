@@ -9,6 +9,7 @@ from django.core.exceptions import ValidationError
 from django.db import models
 from django.db.models import Q
 
+from common import quantities
 from common.points import PointKey, point_label
 from proficiency import protocols
 
@@ -229,8 +230,13 @@ class Device(models.Model):
         return f"{self.name} ({self.comparison.code})" if self.comparison_id else self.name
 
 
+#: The quantity kinds as model choices, from the one registry (docs/domain.md §2).
+QUANTITY_CHOICES = [(k.name, k.label.capitalize()) for k in quantities.KINDS]
+
+
 class MeasurementPoint(models.Model):
-    """One measurand: device × axis × frequency × bench × direction (× optional amplitude)."""
+    """One measurand: device × axis × frequency × bench × direction × quantity kind (×
+    optional amplitude)."""
 
     comparison = models.ForeignKey(
         Comparison, on_delete=models.CASCADE, related_name="measurement_points"
@@ -241,6 +247,13 @@ class MeasurementPoint(models.Model):
     bench = models.CharField(max_length=20, choices=Bench.choices)
     direction = models.CharField(
         max_length=12, choices=Direction.choices, default=Direction.VERTICAL
+    )
+    quantity = models.CharField(
+        max_length=16,
+        choices=QUANTITY_CHOICES,
+        default=quantities.DEFAULT,
+        help_text="What is measured at this point: the sensitivity's magnitude or phase, or a "
+        "gyroscope's angular-rate sensitivity.",
     )
     amplitude_m_s2 = models.FloatField(null=True, blank=True)
     assigned_value_method = models.CharField(
@@ -254,10 +267,18 @@ class MeasurementPoint(models.Model):
     )
 
     class Meta:
-        ordering = ["device__name", "bench", "direction", "axis", "frequency_hz"]
+        ordering = ["device__name", "bench", "direction", "quantity", "axis", "frequency_hz"]
         constraints = [
             models.UniqueConstraint(
-                fields=["comparison", "device", "axis", "frequency_hz", "bench", "direction"],
+                fields=[
+                    "comparison",
+                    "device",
+                    "axis",
+                    "frequency_hz",
+                    "bench",
+                    "direction",
+                    "quantity",
+                ],
                 condition=Q(amplitude_m_s2__isnull=True),
                 name="point_unique_no_amplitude",
             ),
@@ -269,6 +290,7 @@ class MeasurementPoint(models.Model):
                     "frequency_hz",
                     "bench",
                     "direction",
+                    "quantity",
                     "amplitude_m_s2",
                 ],
                 condition=Q(amplitude_m_s2__isnull=False),
@@ -282,10 +304,29 @@ class MeasurementPoint(models.Model):
                 name="point_amplitude_pos",
             ),
             models.CheckConstraint(condition=Q(axis__in=Axis.values), name="point_axis_valid"),
+            models.CheckConstraint(
+                condition=Q(quantity__in=quantities.NAMES), name="point_quantity_valid"
+            ),
         ]
 
     def __str__(self) -> str:
         return point_label(self.key)
+
+    @property
+    def value_unit(self) -> str:
+        """The unit of the point's values: the device's for a magnitude, ``deg`` for a phase
+        (``common.quantities.point_unit``; reads ``device``)."""
+        return quantities.point_unit(self.quantity, self.device.unit)
+
+    @property
+    def unit_shown(self) -> str:
+        """:attr:`value_unit` as written after a number on a page (``°`` for degrees)."""
+        return quantities.unit_symbol(self.quantity, self.value_unit)
+
+    @property
+    def quantity_label(self) -> str:
+        """``sensitivity phase``: the kind as words (the registry's label)."""
+        return quantities.kind(self.quantity).label
 
     @property
     def key(self) -> PointKey:
@@ -297,6 +338,7 @@ class MeasurementPoint(models.Model):
             self.bench,
             self.direction,
             self.amplitude_m_s2,
+            self.quantity,
         )
 
 

@@ -17,6 +17,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from common.quantities import ANGULAR_RATE, MAGNITUDE, PHASE
+
 LINEAR = "linear"
 CURVILINEAR = "curvilinear"
 SINE_ON_RANDOM = "sine_on_random"
@@ -62,6 +64,9 @@ class BenchPlan:
     # amplitude_m_s2[(frequency, direction)] -> expected excitation amplitude
     amplitudes: dict[tuple[float, str], float] = field(default_factory=dict)
     settings: dict[str, object] = field(default_factory=dict)
+    #: the quantity kinds (``common.quantities``) the bench can measure; a comparison made
+    #: from the template asks for some of them (the magnitude by default)
+    quantities: tuple[str, ...] = (MAGNITUDE,)
 
 
 @dataclass(frozen=True)
@@ -90,6 +95,8 @@ def _linear_plan() -> BenchPlan:
             "tolerance 0.1°. First-order band-pass (10 % bandwidth) and RMS."
         ),
         amplitudes={(f, "vertical"): LINEAR_A_REF for f in LINEAR_FREQUENCIES},
+        # the exciter's reference accelerometer and the DUT share one DAQ clock: a phase
+        quantities=(MAGNITUDE, PHASE),
         settings={
             "a_ref_m_s2": LINEAR_A_REF,
             "mountings_deg": [list(m) for m in LINEAR_MOUNTINGS_DEG],
@@ -117,6 +124,9 @@ def _curvilinear_plan() -> BenchPlan:
             "each axis mounted tangential and radial; 10 repetitions of 40 s."
         ),
         amplitudes=amplitudes,
+        # the encoder gives the table's angle, hence the phase and (ω = dθ/dt) the
+        # gyroscope's angular-rate sensitivity (docs/domain.md §12.1)
+        quantities=(MAGNITUDE, PHASE, ANGULAR_RATE),
         settings={
             "radius_m": MEMS_RADIUS_M,
             "reference_radius_m": IEPE_RADIUS_M,

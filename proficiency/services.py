@@ -12,6 +12,8 @@ from django.db.models import Q
 from django.utils import timezone
 
 from common.errors import InvalidTransition, StateConflict, ValidationFailed
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
+from common.quantities import NAMES as KIND_NAMES
 from proficiency import protocols
 from proficiency.models import (
     DEFAULT_UNIT,
@@ -117,11 +119,12 @@ def comparison_transition(*, comparison: Comparison, to: str) -> Comparison:
 
 
 #: A point by its device's id, as the unique constraint sees it (no query for the device names).
-_IdKey = tuple[int, str, float, str, str, float | None]
+_IdKey = tuple[int, str, float, str, str, float | None, str]
 
 
 def _point_key(p: MeasurementPoint) -> _IdKey:
-    return (p.device_id, p.axis, p.frequency_hz, p.bench, p.direction, p.amplitude_m_s2)
+    return (p.device_id, p.axis, p.frequency_hz, p.bench, p.direction, p.amplitude_m_s2,
+            p.quantity)  # fmt: skip
 
 
 @transaction.atomic
@@ -134,8 +137,10 @@ def measurement_points_generate(
     benches: Iterable[str],
     directions: Iterable[str] | None = None,
     amplitudes: dict[tuple[float, str], float] | None = None,
+    quantities: Iterable[str] = (DEFAULT_QUANTITY,),
 ) -> list[MeasurementPoint]:
-    """Create the grid devices × axes × frequencies × benches × directions; idempotent.
+    """Create the grid devices × axes × frequencies × benches × directions × quantity kinds
+    (``common.quantities``; default the magnitude only); idempotent.
 
     ``directions`` defaults to each bench's own (vertical on the linear bench,
     tangential and radial on the curvilinear one); a (bench, direction) pair that
@@ -145,11 +150,13 @@ def measurement_points_generate(
     """
     axes, freqs, benches = list(axes), [float(f) for f in frequencies_hz], list(benches)
     _check_grid(comparison, devices, axes, freqs, benches)
+    kinds = _kinds(quantities)
     existing = {_point_key(p) for p in comparison.measurement_points.all()}
     new: list[MeasurementPoint] = []
     for bench in benches:
         dirs = list(directions) if directions is not None else _bench_directions(bench)
-        for device, axis, f, direction in itertools.product(devices, axes, freqs, dirs):
+        grid = itertools.product(devices, axes, freqs, dirs, kinds)
+        for device, axis, f, direction, quantity in grid:
             _check_direction(bench, direction)
             amp = (amplitudes or {}).get((f, direction))
             point = MeasurementPoint(
@@ -160,11 +167,25 @@ def measurement_points_generate(
                 bench=bench,
                 direction=direction,
                 amplitude_m_s2=amp,
+                quantity=quantity,
             )
             if _point_key(point) not in existing:
                 existing.add(_point_key(point))
                 new.append(point)
     return MeasurementPoint.objects.bulk_create(new)
+
+
+def _kinds(quantities: Iterable[str]) -> list[str]:
+    """The kinds asked for, each known to the registry, in the order given."""
+    kinds = list(dict.fromkeys(quantities))
+    bad = [q for q in kinds if q not in KIND_NAMES]
+    if bad or not kinds:
+        raise ValidationFailed(
+            f"Cannot generate the measurement grid: unknown quantity {', '.join(map(repr, bad))}"
+            f" (use {', '.join(KIND_NAMES)})." if bad else
+            "Cannot generate the measurement grid: at least one quantity is needed."
+        )  # fmt: skip
+    return kinds
 
 
 def _bench_directions(bench: str) -> list[str]:
@@ -206,9 +227,15 @@ def _check_grid(
 
 @transaction.atomic
 def comparison_apply_template(
-    *, comparison: Comparison, template_key: str, devices: Sequence[Device]
+    *,
+    comparison: Comparison,
+    template_key: str,
+    devices: Sequence[Device],
+    quantities: Iterable[str] = (DEFAULT_QUANTITY,),
 ) -> list[MeasurementPoint]:
-    """Generate the measurement points of a seed protocol (docs/domain.md §8) for ``devices``."""
+    """Generate the measurement points of a seed protocol (docs/domain.md §8) for ``devices``:
+    of each kind in ``quantities`` that a bench of the template offers (the magnitude by
+    default; the benches' ``quantities`` say what each offers)."""
     try:
         template = protocols.TEMPLATES[template_key]
     except KeyError:
@@ -216,8 +243,18 @@ def comparison_apply_template(
         raise ValidationFailed(
             f"Unknown protocol template {template_key!r}; known: {known}."
         ) from None
+    wanted = _kinds(quantities)
+    offered = {q for plan in template.benches for q in plan.quantities}
+    if missing := [q for q in wanted if q not in offered]:
+        raise ValidationFailed(
+            f"The template {template_key!r} offers no {', '.join(missing)} points; it offers "
+            f"{', '.join(q for q in KIND_NAMES if q in offered)}."
+        )
     created: list[MeasurementPoint] = []
     for plan in template.benches:
+        kinds = [q for q in wanted if q in plan.quantities]
+        if not kinds:
+            continue
         created += measurement_points_generate(
             comparison=comparison,
             devices=devices,
@@ -226,6 +263,7 @@ def comparison_apply_template(
             benches=[plan.bench],
             directions=plan.directions,
             amplitudes=plan.amplitudes,
+            quantities=kinds,
         )
     if comparison.protocol != template_key:
         comparison.protocol = template_key

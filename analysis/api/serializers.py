@@ -58,6 +58,7 @@ class ScoreSerializer(serializers.ModelSerializer):
     frequency_hz = serializers.FloatField(source="result.measurement_point.frequency_hz")
     bench = serializers.CharField(source="result.measurement_point.bench")
     direction = serializers.CharField(source="result.measurement_point.direction")
+    quantity = serializers.CharField(source="result.measurement_point.quantity")
     value = serializers.FloatField(source="result.value")
     expanded_uncertainty = serializers.FloatField(source="result.expanded_uncertainty")
     z_used = serializers.SerializerMethodField(
@@ -106,7 +107,7 @@ class ScoreSerializer(serializers.ModelSerializer):
     class Meta:
         model = Score
         fields = [
-            "lab", "device", "axis", "frequency_hz", "bench", "direction", "value",
+            "lab", "device", "axis", "frequency_hz", "bench", "direction", "quantity", "value",
             "expanded_uncertainty", "d", "d_percent", "en", "zeta", "z", "z_prime", "flag",
             "z_flag", "correlation_applied", "correlation_failed", "in_assigned_value", "z_used",
             "kit", "linked_d", "linked_expanded_uncertainty", "u_link", "drift_correction",

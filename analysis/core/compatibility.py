@@ -23,7 +23,9 @@ from numpy.typing import ArrayLike
 
 from analysis.core.aggregate import Aggregate, aggregate, check_coverage_factor
 from analysis.core.groups import BoolArray, CoreInputError, FloatArray, Groups, IntArray, as_finite
+from analysis.core.phase import wrap
 from common.points import POINT_FIELDS
+from common.quantities import CIRCULAR
 
 #: Above this many cells (groups × width²) the batch form works block by block
 #: instead of on one padded 3-D array (8 bytes a cell: 2**24 cells = 128 MiB).
@@ -34,17 +36,23 @@ _BAND_CELLS = 2**15
 _COX_RTOL = 1e-9
 
 LABEL_COLUMNS = ("lab", *POINT_FIELDS)
-#: Factor name -> label column (``frequency`` reads ``frequency_hz``).
+#: Factor name -> label column (``frequency`` reads ``frequency_hz``); ``quantity`` is a
+#: by-key only (a magnitude and a phase are never compared with each other).
 FACTORS = {c.removesuffix("_hz"): c for c in LABEL_COLUMNS}
+QUANTITY = "quantity"
 
 
-def pairwise_en(x: ArrayLike, U: ArrayLike, *, out: FloatArray | None = None) -> FloatArray:
+def pairwise_en(
+    x: ArrayLike, U: ArrayLike, *, out: FloatArray | None = None, circular: bool = False
+) -> FloatArray:
     """Square matrix En_ij = |x_i − x_j| / √(U_i² + U_j²) for one set of results.
 
     ``U`` are expanded uncertainties (> 0).  The matrix is exactly symmetric
-    with a zero diagonal.  It is filled in bands of rows whose denominator
-    buffer (~256 KiB) stays in cache: 2–3× faster than whole-matrix temporaries
-    for n in the thousands, and the only n×n array is the result (``out``).
+    with a zero diagonal.  ``circular``: the values are phases in degrees and
+    x_i − x_j is the wrapped difference (docs/domain.md §12).  It is filled in
+    bands of rows whose denominator buffer (~256 KiB) stays in cache: 2–3× faster
+    than whole-matrix temporaries for n in the thousands, and the only n×n array is
+    the result (``out``).
     """
     xv, Uv = _pair_inputs(x, U)
     n = xv.size
@@ -58,6 +66,8 @@ def pairwise_en(x: ArrayLike, U: ArrayLike, *, out: FloatArray | None = None) ->
     for r0 in range(0, n, rows):
         band, d = out[r0 : r0 + rows], den[: min(rows, n - r0)]
         np.subtract.outer(xv[r0 : r0 + rows], xv, out=band)
+        if circular:
+            band[...] = wrap(band)
         np.abs(band, out=band)
         np.add.outer(u2[r0 : r0 + rows], u2, out=d)
         np.sqrt(d, out=d)
@@ -65,15 +75,20 @@ def pairwise_en(x: ArrayLike, U: ArrayLike, *, out: FloatArray | None = None) ->
     return out
 
 
-def pairwise_en_padded(x: ArrayLike, U: ArrayLike, groups: Groups) -> FloatArray:
+def pairwise_en_padded(
+    x: ArrayLike, U: ArrayLike, groups: Groups, circular: BoolArray | None = None
+) -> FloatArray:
     """En matrices of all groups at once as a (n_groups, m, m) array, m = largest group.
 
     Block g holds the matrix of group g's results in input order in its top-left
     n_g × n_g corner; the rest is NaN.  Memory is n_groups·m² cells: use
-    :func:`pairwise_en_grouped` when group sizes differ a lot.
+    :func:`pairwise_en_grouped` when group sizes differ a lot.  ``circular`` (per
+    group) marks groups of phases, whose differences are wrapped.
     """
     xv, Uv = _pair_inputs(x, U, groups)
     en, den = _padded_outer(xv, Uv, groups)
+    if circular is not None and circular.any():
+        en[circular] = wrap(en[circular])
     np.abs(en, out=en)
     return np.divide(en, den, out=en)
 
@@ -96,9 +111,15 @@ class GroupedEn:
 
 
 def pairwise_en_grouped(
-    x: ArrayLike, U: ArrayLike, groups: Groups, *, limit: float = 1.0
+    x: ArrayLike,
+    U: ArrayLike,
+    groups: Groups,
+    *,
+    limit: float = 1.0,
+    circular: BoolArray | None = None,
 ) -> GroupedEn:
-    """En matrix of every group, for groups of equal or different sizes.
+    """En matrix of every group, for groups of equal or different sizes; ``circular`` (per
+    group) marks groups of phases, compared by wrapped differences.
 
     Many small groups are computed together on one padded 3-D array; when that
     array would exceed :data:`PADDED_CELL_LIMIT` cells (a few large groups, or
@@ -110,11 +131,15 @@ def pairwise_en_grouped(
     members = np.split(groups.order(), np.cumsum(counts)[:-1])
     width = int(counts.max()) if groups.n_groups else 0
     if groups.n_groups * width * width <= PADDED_CELL_LIMIT:
-        en = pairwise_en_padded(xv, Uv, groups)
+        en = pairwise_en_padded(xv, Uv, groups, circular)
         blocks = [en[g, :c, :c] for g, c in enumerate(counts.tolist())]
         pairs = incompatible_pairs(en, limit)
     else:
-        blocks = [pairwise_en(xv[m], Uv[m]) if m.size else np.empty((0, 0)) for m in members]
+        circ = np.zeros(groups.n_groups, bool) if circular is None else circular
+        blocks = [
+            pairwise_en(xv[m], Uv[m], circular=bool(circ[g])) if m.size else np.empty((0, 0))
+            for g, m in enumerate(members)
+        ]
         pairs = np.array([int(incompatible_pairs(b, limit)) for b in blocks], dtype=np.intp)
     return GroupedEn(blocks=blocks, members=list(members), incompatible_pairs=pairs)
 
@@ -265,7 +290,7 @@ def compatibility_matrices(
     sorted by their keys.
     """
     col = _factor_column(factor)
-    by_cols = _by_columns(by, col)
+    by_cols = with_quantity(_by_columns(by, col), table)
     value, u = _numeric_columns(table)
     lvl_code, lvl_names = _encode(table, col, value.size)
     by_code, by_shape, by_names = _encode_many(table, by_cols, value.size)
@@ -293,15 +318,19 @@ def _matrices_of_levels(
     n_lvl = lvl_names.size
     by_present, by_idx = np.unique(present // n_lvl, return_inverse=True)
     by_groups = Groups.from_index(by_idx.reshape(-1), by_present.size)
-    batch = pairwise_en_grouped(agg.mean, agg.expanded_uncertainty, by_groups, limit=limit)
     parts = np.unravel_index(by_present, by_shape)
+    circular = _circular_groups(by_cols, by_names, parts, by_present.size)
+    batch = pairwise_en_grouped(
+        agg.mean, agg.expanded_uncertainty, by_groups, limit=limit, circular=circular
+    )
     level_names = lvl_names[present % n_lvl]
+    mean = np.where(circular[by_groups.index], wrap(agg.mean), agg.mean)
     return [
         CompatibilityMatrix(
             factor=_factor_name(factor),
             group={c: by_names[j][parts[j][g]].item() for j, c in enumerate(by_cols)},
             levels=level_names[m].tolist(),
-            value=agg.mean[m],
+            value=mean[m],
             standard_uncertainty=agg.standard_uncertainty[m],
             expanded_uncertainty=agg.expanded_uncertainty[m],
             en=batch.blocks[g],
@@ -312,6 +341,24 @@ def _matrices_of_levels(
         )
         for g, m in enumerate(batch.members)
     ]
+
+
+def with_quantity(by_cols: tuple[str, ...], table: Mapping[str, object]) -> tuple[str, ...]:
+    """The by-columns with ``quantity`` where the table has that column (kinds are never
+    pooled nor compared with each other), without it where it has not (a table of
+    magnitudes written before kinds existed)."""
+    cols = tuple(c for c in by_cols if c != QUANTITY)
+    return (*cols, QUANTITY) if QUANTITY in table else cols
+
+
+def _circular_groups(
+    by_cols: tuple[str, ...], by_names: list[np.ndarray], parts: tuple[np.ndarray, ...], n: int
+) -> BoolArray:
+    """Per by-group: whether it holds a circular kind (its levels are phases)."""
+    if QUANTITY not in by_cols:
+        return np.zeros(n, dtype=bool)
+    j = by_cols.index(QUANTITY)
+    return np.isin(by_names[j][parts[j]], list(CIRCULAR))
 
 
 @dataclass(frozen=True, eq=False)
@@ -415,10 +462,12 @@ def _check_padded_size(groups: Groups) -> None:
         )
 
 
-def _factor_column(factor: str) -> str:
+def _factor_column(factor: str, *, by: bool = False) -> str:
+    """The label column of a factor (or, with ``by``, of a by-key: ``quantity`` too)."""
     col = FACTORS.get(factor, factor if factor == "frequency_hz" else None)
-    if col is None:
-        raise CoreInputError(f"unknown factor {factor!r}; choose one of {sorted(FACTORS)}")
+    if col is None or (col == QUANTITY and not by):
+        names = sorted(f for f in FACTORS if by or f != QUANTITY)
+        raise CoreInputError(f"unknown factor {factor!r}; choose one of {names}")
     return col
 
 
@@ -431,7 +480,7 @@ def _by_columns(by: Sequence[str] | None, factor_col: str) -> tuple[str, ...]:
         return default_by(factor_col)
     if isinstance(by, str):
         by = (by,)
-    cols = tuple(_factor_column(b) for b in by)
+    cols = tuple(_factor_column(b, by=True) for b in by)
     if factor_col in cols:
         raise CoreInputError(f"the factor {factor_col!r} cannot also be a 'by' key")
     if len(set(cols)) != len(cols):

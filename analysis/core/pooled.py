@@ -30,6 +30,7 @@ from analysis.core.compatibility import (
     _encode_many,
     _factor_column,
     _matrices_of_levels,
+    with_quantity,
 )
 from analysis.core.groups import CoreInputError, FloatArray, Groups, IntArray, as_finite
 
@@ -99,10 +100,12 @@ def compatibility_matrices_pooled(
 
     ``labels`` holds one entry per part (typically a measurement point) in each
     label column the factor and ``by`` need; parts sharing (by-keys, level) are
-    pooled into one level.  Not for the ``lab`` factor unless parts are per lab.
+    pooled into one level.  Not for the ``lab`` factor unless parts are per lab.  With a
+    ``quantity`` column, kinds are never pooled together and phases' moments are taken of
+    values unwrapped about each point's centre (``analysis.pipeline.linear_values``).
     """
     col = _factor_column(factor)
-    by_cols = _by_columns(by, col)
+    by_cols = with_quantity(_by_columns(by, col), labels)
     n_parts = parts.n.size
     if n_parts == 0:
         raise CoreInputError("no measurement points to build compatibility matrices from")

@@ -127,12 +127,17 @@ def _nonneg_per_group(name: str, values: ArrayLike, n: int) -> FloatArray:
 
 
 def _assigned(
-    groups: Groups, x_pt: ArrayLike, u_pt: ArrayLike, U_pt: ArrayLike | None, k_pt: float
+    groups: Groups,
+    x_pt: ArrayLike,
+    u_pt: ArrayLike,
+    U_pt: ArrayLike | None,
+    k_pt: float,
+    relative: BoolArray,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     n = groups.n_groups
     xp = as_finite("x_pt", _group_array("x_pt", x_pt, n))
-    if (xp == 0).any():
-        g = int(np.flatnonzero(xp == 0)[0])
+    if ((xp == 0) & relative).any():
+        g = int(np.flatnonzero((xp == 0) & relative)[0])
         raise CoreInputError(f"x_pt of group {g} is 0: D% = 100·D/x_pt is undefined")
     up = _nonneg_per_group("u(x_pt)", u_pt, n)
     if U_pt is not None:
@@ -191,8 +196,12 @@ def compute_scores(
     contributes: ArrayLike | None = None,
     en_limit: float = 1.0,
     delta_e: ArrayLike | None = None,
+    relative: ArrayLike | None = None,
 ) -> Scores:
     """D, D%, z, z′, ζ and En of ISO 13528:2022 9.3–9.7 (Formulae 11, 12, 14, 15, 19, 20).
+
+    ``relative`` (per group, default every group) says where D% applies: not for a
+    phase (docs/domain.md §12), whose D% is NaN and whose x_pt may be 0.
 
     ``x``, ``u``, ``U`` (> 0) and ``contributes`` are per result; ``x_pt``,
     ``u_pt`` (≥ 0), ``U_pt`` (default ``k_pt``·u_pt), ``sigma_pt`` and
@@ -214,7 +223,10 @@ def compute_scores(
         )
     if not (np.isfinite(en_limit) and en_limit > 0):
         raise CoreInputError(f"en_limit must be finite and > 0, got {en_limit!r}")
-    xp, up, big_up = _assigned(groups, x_pt, u_pt, U_pt, k_pt)
+    rel = np.ones(groups.n_groups, dtype=bool) if relative is None else np.asarray(relative)
+    if rel.dtype != np.bool_ or rel.shape != (groups.n_groups,):
+        raise CoreInputError(f"relative must be one boolean per group ({groups.n_groups})")
+    xp, up, big_up = _assigned(groups, x_pt, u_pt, U_pt, k_pt, rel)
     sigma = _per_group("sigma_pt", sigma_pt, groups.n_groups, allow_nan=True)
     de = _per_group("delta_e", delta_e, groups.n_groups, allow_nan=True)
     corr = _contributes(contributes, groups.size)
@@ -230,7 +242,7 @@ def compute_scores(
     en = d / big_d
     return Scores(
         d=d,
-        d_percent=100.0 * d / xp[idx],
+        d_percent=np.where(rel[idx], 100.0 * d / np.where(rel, xp, 1.0)[idx], np.nan),
         z=z,
         z_prime=z_prime,
         zeta=zeta,

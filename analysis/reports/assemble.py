@@ -45,6 +45,7 @@ from analysis.reports.kits import for_reader, kit_section_of_run
 from analysis.reports.rounds import round_stats, stats_of_rows
 from analysis.reports.sections import FULL_TABLE_ROWS
 from analysis.reports.stability import stability_rows
+from common.quantities import point_unit, shown_group
 from common.sizes import counted
 from labs.models import Participant
 from proficiency import protocols
@@ -566,7 +567,14 @@ def comparison_common(comparison: Comparison) -> ComparisonCommon:
 
 def _points(comparison: Comparison) -> tuple[list[PointInfo], dict[int, int]]:
     rows = comparison.measurement_points.select_related("device").order_by(
-        "device__name", "bench", "direction", "axis", "frequency_hz", "amplitude_m_s2", "pk"
+        "device__name",
+        "bench",
+        "direction",
+        "axis",
+        "frequency_hz",
+        "quantity",
+        "amplitude_m_s2",
+        "pk",
     )
     points, index = [], {}
     for i, p in enumerate(rows):
@@ -580,7 +588,8 @@ def _points(comparison: Comparison) -> tuple[list[PointInfo], dict[int, int]]:
                 p.bench,
                 p.direction,
                 p.amplitude_m_s2,
-                p.device.unit,
+                point_unit(p.quantity, p.device.unit),
+                p.quantity,
             )
         )
     return points, index
@@ -662,7 +671,7 @@ def _matrices(run: AnalysisRun) -> tuple[MatrixData, ...]:
     return tuple(
         MatrixData(
             m.factor,
-            ", ".join(f"{k} {v}" for k, v in m.group.items()) or "all",
+            ", ".join(f"{k} {v}" for k, v in shown_group(m.group).items()) or "all",
             tuple(str(level) for level in m.levels),
             tuple(m.values),
             tuple(m.expanded_uncertainties),

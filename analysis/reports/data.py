@@ -10,6 +10,7 @@ import numpy as np
 
 from analysis.core.graphs import MandelGraph
 from common.points import PointKey, point_label
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
 
 SUMMARY = "summary"
 PARTICIPANT = "participant"
@@ -41,12 +42,13 @@ class PointInfo:
     direction: str
     amplitude_m_s2: float | None
     unit: str
+    quantity: str = DEFAULT_QUANTITY
 
     @property
     def key(self) -> PointKey:
         return PointKey(
             self.device, self.axis, self.frequency_hz, self.bench, self.direction,
-            self.amplitude_m_s2,
+            self.amplitude_m_s2, self.quantity,
         )  # fmt: skip
 
     @property
@@ -95,7 +97,7 @@ class ScoreRow:
     point: int
     lab: str
     d: float
-    d_percent: float
+    d_percent: float | None  # None for a phase (docs/domain.md §12)
     en: float
     zeta: float
     z: float | None

@@ -11,6 +11,7 @@ from typing import Any
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
+from common import quantities
 from common.api import valid_data
 from common.rendering import ValuesRendering
 from labs.models import Result, Submission
@@ -172,7 +173,10 @@ def comparison_detail_data(comparison: Comparison, access: Any) -> dict[str, Any
 
 class MeasurementPointSerializer(serializers.ModelSerializer):
     device = serializers.CharField(source="device.name")
-    unit = serializers.CharField(source="device.unit", help_text="Unit of the sensitivity")
+    unit = serializers.SerializerMethodField(
+        help_text="Unit of the value: the device's for a magnitude, deg for a phase, "
+        "D/(deg/s) for an angular rate"
+    )
     in_scope = serializers.SerializerMethodField(
         help_text="For a participant: whether the point is in its scope, i.e. whether it reports "
         "a result there (docs/domain.md §10); null for a coordinator who does not take part"
@@ -186,10 +190,16 @@ class MeasurementPointSerializer(serializers.ModelSerializer):
             "frequency_hz",
             "bench",
             "direction",
+            "quantity",
             "amplitude_m_s2",
             "unit",
             "in_scope",
         ]
+
+    def get_unit(self, obj: MeasurementPoint) -> str:
+        """The view's annotation (``labs.selectors.point_unit_expression``), or the same rule."""
+        annotated = getattr(obj, "point_unit", None)
+        return annotated or quantities.point_unit(obj.quantity, obj.device.unit)
 
     def get_in_scope(self, obj: MeasurementPoint) -> bool | None:
         return getattr(obj, "in_scope", None)  # the view's annotation (labs.selectors.scope_flag)
@@ -207,8 +217,15 @@ class ResultRowInSerializer(serializers.Serializer):
     frequency_hz = serializers.FloatField()
     bench = serializers.CharField(help_text="linear or curvilinear")
     direction = serializers.CharField(required=False, help_text="vertical, tangential, radial")
+    quantity = serializers.CharField(
+        required=False,
+        help_text="magnitude (default, also for an empty value), phase or angular_rate",
+    )
     amplitude_m_s2 = serializers.FloatField(required=False, allow_null=True)
-    sensitivity = serializers.FloatField()
+    sensitivity = serializers.FloatField(
+        help_text="The value: > 0 for a magnitude or an angular rate; for a phase any finite "
+        "number of degrees, stored wrapped into (-180, 180]"
+    )
     unit = serializers.CharField(required=False, help_text="Default: the device's unit")
     expanded_uncertainty = serializers.CharField(
         help_text="Number > 0 in the unit of sensitivity, or a string with a % suffix"
@@ -286,6 +303,7 @@ class ResultSerializer(serializers.ModelSerializer):
     frequency_hz = serializers.FloatField(source="measurement_point.frequency_hz")
     bench = serializers.CharField(source="measurement_point.bench")
     direction = serializers.CharField(source="measurement_point.direction")
+    quantity = serializers.CharField(source="measurement_point.quantity")
     amplitude_m_s2 = serializers.FloatField(
         source="measurement_point.amplitude_m_s2", allow_null=True
     )
@@ -299,6 +317,7 @@ class ResultSerializer(serializers.ModelSerializer):
             "frequency_hz",
             "bench",
             "direction",
+            "quantity",
             "amplitude_m_s2",
             "sensitivity",
             "unit",

@@ -46,7 +46,7 @@ from labs.api.authentication import LabAPIKeyAuthentication
 from labs.api.throttling import LabAPIKeyRateThrottle, SessionUserRateThrottle
 from labs.importers.values import human_size
 from labs.models import Submission
-from labs.selectors import results_template, scope_flag
+from labs.selectors import point_unit_expression, results_template, scope_flag
 from labs.services import submission_from_file, submission_from_records
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
 from proficiency.serializers import NewComparisonSerializer
@@ -217,7 +217,9 @@ class MeasurandList(ApiView, ValuesListView):
     whose `in_scope` is true (every point when it has no scope)."""
 
     serializer_class = s.MeasurementPointSerializer
-    rendering = ValuesRendering(s.MeasurementPointSerializer, annotations={"in_scope": "in_scope"})
+    rendering = ValuesRendering(
+        s.MeasurementPointSerializer, annotations={"in_scope": "in_scope", "unit": "point_unit"}
+    )
     filter_backends: list[type] = []
 
     def get_queryset(self) -> QuerySet[Any]:
@@ -225,7 +227,9 @@ class MeasurandList(ApiView, ValuesListView):
             return MeasurementPoint.objects.none()
         access = self.access(self.kwargs["code"])
         points = measurement_points(access.comparison)
-        return points.annotate(in_scope=scope_flag(access.participant))
+        return points.annotate(
+            in_scope=scope_flag(access.participant), point_unit=point_unit_expression()
+        )
 
 
 class CSVRenderer(BaseRenderer):

@@ -14,6 +14,8 @@ import dataclasses
 import functools
 from collections.abc import Callable, Iterable, Mapping, Sequence
 
+from common import quantities
+
 from .errors import MAX_LISTED_ERRORS, ImportErrors, RowError
 from .schema import (
     AXES,
@@ -34,22 +36,19 @@ from .validate import (
     _lab,
     _n_repeats,
     _note,
+    _quantity,
     _RowCheck,
+    _sensitivity,
     _uncertainty,
     _unit,
     cells_to_record,
+    convert_units,
     find_duplicates,
     magnitude_problems,
     relative_to_absolute,
     repeat_problems,
 )
-from .values import (
-    CANONICAL_UNIT,
-    MAX_MAGNITUDE,
-    MG_PER_LSB,
-    MIN_MAGNITUDE,
-    mg_per_lsb_to_canonical,
-)
+from .values import MAX_MAGNITUDE, MIN_MAGNITUDE
 
 Cell = tuple[object, tuple[tuple[str | None, str], ...]]
 Compute = Callable[..., object]  # (check) or, for a dependent column, (check, dependency)
@@ -226,6 +225,7 @@ def field_checks(context: TableContext | None, lab_column: LabColumn) -> list[Fi
         ("axis", "text", lambda c: c.choice("axis", axes, AXES), None),
         ("frequency_hz", "text", lambda c: _frequency(c, context), None),
         ("bench", "text", lambda c: c.choice("bench", benches, bench_universe), None),
+        ("quantity", "text", _quantity, None),
         ("expanded_uncertainty", "number", _uncertainty, None),
         ("lab", "text", lambda c: _lab(c, lab_column), None),
         ("note", "text", _note, None),
@@ -240,14 +240,35 @@ def field_checks(context: TableContext | None, lab_column: LabColumn) -> list[Fi
 
 
 def _field_values(v: _Validator, context: TableContext | None, lab_column: LabColumn) -> dict:
-    """Every column converted; failing cells are ``None`` and their rows marked bad."""
+    """Every column converted; failing cells are ``None`` and their rows marked bad.
+
+    A table with a quantity kind other than the magnitude reads its value, U and unit
+    once per distinct (kind, cell) through the kind's checks (a phase may be negative, its
+    U is never a percentage); a table of magnitudes keeps the fast number path."""
     out: dict[str, list[object]] = {}
+    by_kind: dict[str, Compute] = {}
     for field, kind, check, dependency in field_checks(context, lab_column):
-        if kind == "number":
+        if field in by_kind:
+            depends = out["quantity"]
+            if field == "unit":
+                depends = list(zip(out["device"], out["quantity"], strict=True))
+            out[field] = v.column(field, by_kind[field], depends)
+        elif kind == "number":
             out[field] = v.number_column(field, check)
         else:
             out[field] = v.column(field, check, out[dependency] if dependency else None)
+        if field == "quantity" and any(q not in (None, quantities.DEFAULT) for q in out[field]):
+            by_kind = _kind_checks(context)
     return out
+
+
+def _kind_checks(context: TableContext | None) -> dict[str, Compute]:
+    """The checks that depend on a row's quantity kind (and the unit on its device too)."""
+    return {
+        "sensitivity": _sensitivity,
+        "expanded_uncertainty": _uncertainty,
+        "unit": lambda c, dq: _unit(c, dq[0], context, dq[1]),
+    }
 
 
 def _number(
@@ -307,9 +328,9 @@ def _assemble(
     v: _Validator, values: Mapping[str, list[object]], context: TableContext | None
 ) -> list[ResultRow]:
     """A :class:`ResultRow` per good row, with the measurement-point check."""
-    fields = ("device", "axis", "frequency_hz", "bench", "direction", "amplitude_m_s2",
-              "sensitivity", "unit", "expanded_uncertainty", "coverage_factor", "dof", "lab",
-              "note", "repeat_sd", "n_repeats")  # fmt: skip
+    fields = ("device", "axis", "frequency_hz", "bench", "direction", "quantity",
+              "amplitude_m_s2", "sensitivity", "unit", "expanded_uncertainty", "coverage_factor",
+              "dof", "lab", "note", "repeat_sd", "n_repeats")  # fmt: skip
     table = zip(v.numbers, v.bad, *(values[f] for f in fields), strict=True)
     check_points = context is not None and context.points is not None
     rows = []
@@ -317,27 +338,28 @@ def _assemble(
     for number, bad, *cells in table:
         if bad:
             continue
-        device, axis, freq, bench, direction, amp, sens, unit, u, k, dof, lab, note, sd, n = cells
+        device, axis, freq, bench, direction, q, amp, sens, unit, u, k, dof, lab, note, sd, n = (
+            cells
+        )
         expanded, entered = u, ""
         if type(u) is tuple:  # from the precise check: (value, given in %, text if in %)
             expanded = relative_to_absolute(sens, u[0]) if u[1] else u[0]
             entered = u[2]
-        original_unit, given = None, sens
-        if unit == MG_PER_LSB:
-            # The relative uncertainty is kept through the inversion (docs/domain.md §2).
-            converted = mg_per_lsb_to_canonical(sens)
-            expanded, sens = converted * expanded / sens, converted
-            unit, original_unit = CANONICAL_UNIT, MG_PER_LSB
+        given = sens
+        sens, expanded, unit, original_unit = convert_units(q, sens, expanded, unit)
         k = DEFAULT_COVERAGE_FACTOR if k is None else k
         paired: list[tuple[str, str]] = []
         if sd is not None or n is not None:
             sd, paired = repeat_problems(sd, n, sens, given, original_unit)
+        signed = q != quantities.DEFAULT and not quantities.kind(q).positive
         if paired or not (
-            _MIN <= sens <= _MAX and _MIN <= expanded <= _MAX and _MIN <= expanded / k <= _MAX
+            (signed or _MIN <= sens <= _MAX)
+            and _MIN <= expanded <= _MAX
+            and _MIN <= expanded / k <= _MAX
         ):
-            v.note(number, magnitude_problems(sens, expanded, k, original_unit) + paired)
+            v.note(number, magnitude_problems(sens, expanded, k, original_unit, q) + paired)
             continue
-        row = _result_row(number, device, axis, freq, bench, direction, amp, sens, unit,
+        row = _result_row(number, device, axis, freq, bench, direction, q, amp, sens, unit,
                           expanded, k, dof, lab, note, original_unit, sd, n, entered)  # fmt: skip
         if check_points and not _one_point_in_scope(context, row):  # type: ignore[arg-type]
             check = _RowCheck({}, number, v.decimal_comma)

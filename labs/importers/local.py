@@ -15,11 +15,12 @@ Two ways, one result:
   check (:func:`labs.importers.columns.field_checks`), numbers through ``float()`` as the
   importer's fast path does, then the row-level steps of
   :func:`labs.importers.columns.validate_columns` on whole arrays;
-* **anything else** (XLSX, semicolons, quoted cells, blank or ragged lines) and **every
-  file with a problem** is read again by the streaming importer
-  (:func:`labs.importers.stream.read_chunks`), so each message is the one an upload
-  gives. Problems are listed up to :data:`~labs.importers.errors.MAX_LISTED_ERRORS`, with
-  the count of the rest.
+* **anything else** (XLSX, semicolons, quoted cells, blank or ragged lines, a
+  ``quantity`` column, whose kinds have their own checks) and **every file with a
+  problem** is read again by the streaming importer
+  (:func:`labs.importers.stream.read_chunks`), so each message is the one an upload gives.
+  Problems are listed up to :data:`~labs.importers.errors.MAX_LISTED_ERRORS`, with the
+  count of the rest.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from typing import BinaryIO
 import numpy as np
 
 from common.numbers import percent_fraction
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
 
 from .columns import Compute, _Validator, field_checks
 from .errors import MAX_LISTED_ERRORS, ImportErrors, RowError
@@ -69,6 +71,7 @@ class LocalTable:
     frequency_hz: np.ndarray
     bench: np.ndarray
     direction: np.ndarray
+    quantity: np.ndarray
     amplitude_m_s2: np.ndarray
     sensitivity: np.ndarray
     expanded_uncertainty: np.ndarray
@@ -81,7 +84,7 @@ class LocalTable:
 
 
 _FIELDS = [f.name for f in fields(LocalTable)]
-_TEXT_FIELDS = ("lab", "device", "axis", "bench", "direction")
+_TEXT_FIELDS = ("lab", "device", "axis", "bench", "direction", "quantity")
 
 
 class _NotPlain(Exception):
@@ -198,6 +201,8 @@ class _Plain:
             self.names = check_header(cells, lab_column=self.lab_column, row=1)
         except ImportErrors:
             raise _NotPlain from None
+        if "quantity" in self.names:  # kinds have their own checks: the importer's own way
+            raise _NotPlain
         self.point_names = [n for n in self.names if n in _POINT_TEXT]
         self.texts = {n: _Codes() for n in self.names if n in _CODED}
         self.numbers = {n: [] for n in self.names if self.checks[n][0] == "number"}
@@ -331,6 +336,7 @@ class _Plain:
                 n: np.array(point[n], np.str_)[at] for n in ("device", "axis", "bench", "direction")
             },
             frequency_hz=np.array(point["frequency_hz"], np.float64)[at],
+            quantity=np.full(self.n_rows, DEFAULT_QUANTITY),  # dtype from the text: U9
             amplitude_m_s2=self._number("amplitude_m_s2"),
             sensitivity=sensitivity,
             expanded_uncertainty=expanded,
@@ -452,7 +458,7 @@ def find_duplicates(table: LocalTable) -> tuple[list[RowError], int]:
     repeating the lab and measurement point of an earlier row (frequency and amplitude
     compared to 12 significant digits), naming the first such row. The first
     :data:`MAX_LISTED_ERRORS` of them, and how many there are."""
-    columns = [table.lab, table.device, table.axis, table.bench, table.direction]
+    columns = [table.lab, table.device, table.axis, table.bench, table.direction, table.quantity]
     codes = [(np.unique(c, return_inverse=True)[1].reshape(-1), len(c)) for c in columns]
     codes += [_float_codes(table.frequency_hz), _float_codes(table.amplitude_m_s2)]
     return _duplicates(table.row, codes)

@@ -8,6 +8,7 @@ from functools import cached_property
 from typing import Literal
 
 from common.points import PointKey as PointKey  # re-exported: the importers' key type
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
 
 from .matching import FrequencyIndex, close
 from .values import CANONICAL_UNIT
@@ -22,6 +23,7 @@ COLUMNS = (
     "frequency_hz",
     "bench",
     "direction",
+    "quantity",
     "amplitude_m_s2",
     "sensitivity",
     "unit",
@@ -58,7 +60,8 @@ DEFAULT_COVERAGE_FACTOR = 2.0
 @dataclass(frozen=True, kw_only=True, slots=True)
 class ResultRow:
     """One validated result; ``sensitivity``, ``expanded_uncertainty`` and ``repeat_sd``
-    are in ``unit``.
+    are in ``unit``.  ``quantity`` is the point's kind (``common.quantities``): for a
+    phase, ``sensitivity`` is the phase in degrees, wrapped into (−180°, 180°].
 
     ``original_unit`` is the unit the lab wrote when it was converted (``mg/LSB``).
     ``repeat_sd`` and ``n_repeats`` (both or neither) are the within-laboratory standard
@@ -73,6 +76,7 @@ class ResultRow:
     frequency_hz: float
     bench: str
     direction: str = "vertical"
+    quantity: str = DEFAULT_QUANTITY
     amplitude_m_s2: float | None = None
     sensitivity: float
     unit: str = CANONICAL_UNIT
@@ -104,6 +108,7 @@ class ResultRow:
             self.bench,
             self.direction,
             self.amplitude_m_s2,
+            self.quantity,
         )
 
     def as_record(self) -> dict[str, object]:
@@ -215,10 +220,10 @@ class TableContext:
         return tuple(self.directions.get(bench, DIRECTIONS))
 
     @cached_property
-    def _point_index(self) -> dict[tuple[str, str, str, str], FrequencyIndex[PointKey]]:
-        groups: dict[tuple[str, str, str, str], list[tuple[float, PointKey]]] = {}
+    def _point_index(self) -> dict[tuple[str, str, str, str, str], FrequencyIndex[PointKey]]:
+        groups: dict[tuple[str, str, str, str, str], list[tuple[float, PointKey]]] = {}
         for p in self.points or ():
-            groups.setdefault((p.device, p.axis, p.bench, p.direction), []).append(
+            groups.setdefault((p.device, p.axis, p.bench, p.direction, p.quantity), []).append(
                 (p.frequency_hz, p)
             )
         tol = self.frequency_rel_tol
@@ -226,7 +231,8 @@ class TableContext:
 
     def matching_points(self, row: ResultRow | PointKey) -> list[PointKey]:
         """The context's points a row fits; an unset amplitude on either side matches any."""
-        index = self._point_index.get((row.device, row.axis, row.bench, row.direction))
+        key = (row.device, row.axis, row.bench, row.direction, row.quantity)
+        index = self._point_index.get(key)
         if index is None:
             return []
         b, tol = row.amplitude_m_s2, self.frequency_rel_tol

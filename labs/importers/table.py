@@ -20,6 +20,8 @@ import zipfile
 from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import Any, BinaryIO, Literal
 
+from common.quantities import DEFAULT as DEFAULT_QUANTITY
+
 from .columns import record_columns, sheet_columns, validate_columns
 from .errors import RowError, fatal
 from .readers import read_sheet
@@ -156,13 +158,15 @@ def _cell(value: object) -> object:
     return escape_text(str(value))
 
 
-#: Columns a default download leaves out when no row has a value there: a table without
-#: labs or repeatability data reads as it did before these columns existed.
-_OPTIONAL_OUT = ("lab", "repeat_sd", "n_repeats")
+#: Columns a default download leaves out when no row has a value there (for ``quantity``:
+#: another kind than the magnitude): a table without labs, repeatability data or other
+#: kinds reads as it did before these columns existed.
+_OPTIONAL_OUT = ("lab", "quantity", "repeat_sd", "n_repeats")
+_NO_VALUE = (None, "", DEFAULT_QUANTITY)
 
 
 def _default_columns(records: Sequence[Mapping[str, object]]) -> list[str]:
-    present = {c for c in _OPTIONAL_OUT if any(r.get(c) not in (None, "") for r in records)}
+    present = {c for c in _OPTIONAL_OUT if any(r.get(c) not in _NO_VALUE for r in records)}
     return [c for c in COLUMNS if c not in _OPTIONAL_OUT or c in present]
 
 

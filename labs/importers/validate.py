@@ -7,6 +7,7 @@ import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TypeVar
 
+from common import quantities
 from common.numbers import percent_fraction
 from common.points import point_label
 
@@ -231,13 +232,57 @@ def _direction(check: _RowCheck, bench: str | None, context: TableContext | None
     return check.choice("direction", allowed, universe, f"on the {bench} bench")
 
 
-def _uncertainty(check: _RowCheck) -> tuple[float, bool, str] | None:
+def _quantity(check: _RowCheck) -> str | None:
+    """The point's quantity kind (``common.quantities``); a blank cell or no column is
+    the magnitude (docs/interfaces.md §1)."""
+    try:
+        return quantities.parse(check.text("quantity"))
+    except ValueError as problem:
+        check.fail("quantity", str(problem))
+        return None
+
+
+def _sensitivity(check: _RowCheck, quantity: str | None) -> float | None:
+    """The value: > 0 for a kind that must be positive; for another (a phase) any finite
+    number in the safe range, stored as its kind stores it (wrapped, docs/domain.md §12)."""
+    if quantity is None:
+        return None
+    if quantities.kind(quantity).positive:
+        return check.number("sensitivity", required=True)
+    raw = check.raw("sensitivity")
+    if is_blank(raw):
+        check.fail("sensitivity", "is required")
+        return None
+    try:
+        value = parse_number(raw, decimal_comma=check.decimal_comma)
+    except ValueProblem as problem:
+        check.fail("sensitivity", str(problem))
+        return None
+    if value != 0 and (issue := magnitude_problem(abs(value))):
+        check.fail("sensitivity", issue)
+        return None
+    return quantities.stored_value(quantity, value)
+
+
+def _uncertainty(
+    check: _RowCheck, quantity: str | None = quantities.DEFAULT
+) -> tuple[float, bool, str] | None:
     """Expanded uncertainty, whether it was given in % of the sensitivity, and then the text
     as written, kept with the result (docs/domain.md §3.1): its number as typed and one space
-    before the per-cent sign, as SI writes it (``1.2%`` and ``1.2 %`` are ``1.2 %``)."""
+    before the per-cent sign, as SI writes it (``1.2%`` and ``1.2 %`` are ``1.2 %``).  A kind
+    without a relative U (a phase: a per cent of an angle means nothing) refuses the %."""
     raw = check.raw("expanded_uncertainty")
     if isinstance(raw, str) and raw.strip().endswith("%"):
         shown = " ".join(raw.split())
+        if quantity is None:
+            return None
+        if not quantities.kind(quantity).relative_u:
+            unit = quantities.kind(quantity).default_unit
+            check.fail(
+                "expanded_uncertainty",
+                f"a {quantity}'s U is given in {unit}, not as a percentage, got {shown!r}",
+            )
+            return None
         try:
             value = parse_number(shown[:-1], decimal_comma=check.decimal_comma)
         except ValueProblem:
@@ -265,7 +310,25 @@ def relative_to_absolute(sensitivity: float, percent: float) -> float:
     return sensitivity * percent_fraction(percent)
 
 
-def _unit(check: _RowCheck, device: str | None, context: TableContext | None) -> str | None:
+def _unit(
+    check: _RowCheck,
+    device: str | None,
+    context: TableContext | None,
+    quantity: str | None = quantities.DEFAULT,
+) -> str | None:
+    """The device's unit for a magnitude; a kind with its own units (a phase in degrees,
+    an angular rate per °/s or rad/s) takes one of them, as written (the assembly converts
+    it with :func:`convert_units`)."""
+    if quantity is None:
+        return None
+    if quantities.kind(quantity).units:
+        text = check.text("unit")
+        try:
+            quantities.own_unit(quantity, text)
+        except ValueError as problem:
+            check.fail("unit", str(problem))
+            return None
+        return text.strip() or quantities.kind(quantity).default_unit
     given = check.text("unit")
     extra = tuple((context.device_units or {}).values()) if context else ()
     if not given:
@@ -284,6 +347,25 @@ def _unit(check: _RowCheck, device: str | None, context: TableContext | None) ->
                 f"{given!r} does not fit {device}, whose unit in this comparison is {expected}",
             )
     return unit
+
+
+def convert_units(
+    quantity: str, sensitivity: float, expanded: float, unit: str
+) -> tuple[float, float, str, str | None]:
+    """``(sensitivity, U, unit, original unit)`` in the unit the analysis uses: mg/LSB
+    inverted (docs/domain.md §2), an angular rate per rad/s made per °/s; either keeps the
+    relative uncertainty.  The original unit is ``None`` where nothing was converted."""
+    own = quantities.own_unit(quantity, unit)
+    if own is not None:
+        canonical, factor = own
+        if factor == 1.0:
+            return sensitivity, expanded, canonical, None
+        return sensitivity * factor, expanded * factor, canonical, unit
+    if unit == MG_PER_LSB:
+        # The relative uncertainty is kept through the inversion (docs/domain.md §2).
+        converted = mg_per_lsb_to_canonical(sensitivity)
+        return converted, converted * expanded / sensitivity, CANONICAL_UNIT, MG_PER_LSB
+    return sensitivity, expanded, unit, None
 
 
 def _lab(check: _RowCheck, lab_column: LabColumn) -> str | None:
@@ -366,14 +448,20 @@ def repeat_problems(
 
 
 def magnitude_problems(
-    sensitivity: float, expanded: float, k: float, original_unit: str | None
+    sensitivity: float,
+    expanded: float,
+    k: float,
+    original_unit: str | None,
+    quantity: str = quantities.DEFAULT,
 ) -> list[tuple[str, str]]:
     """The derived values the statistics use, checked like the cells (README, "Results
-    tables"): U once made absolute, u = U/k, and both after a conversion from mg/LSB."""
+    tables"): U once made absolute, u = U/k, and both after a conversion from mg/LSB.  A
+    kind that is not positive (a phase, wrapped) has no lower bound on its value."""
     problems = []
     after = f" after the conversion from {original_unit}" if original_unit else ""
     bounds = f"must be {RANGE_TEXT} (the range the statistics can carry)"
-    if not in_range(sensitivity):
+    signed = not quantities.kind(quantity).positive
+    if not (signed or in_range(sensitivity)):
         problems.append(("sensitivity", f"is {sensitivity:.6g}{after}; it {bounds}"))
     if not in_range(expanded):
         problems.append(("expanded_uncertainty", f"U is {expanded:.6g}{after}; it {bounds}"))
@@ -391,6 +479,7 @@ def _check_point(check: _RowCheck, row: ResultRow, context: TableContext | None)
             None,
             f"no measurement point {row.device} / {row.axis} / "
             f"{format_number(row.frequency_hz)} Hz / {row.bench} / {row.direction}"
+            f"{'' if row.quantity == quantities.DEFAULT else ' / ' + row.quantity}"
             " in this comparison",
         )
     elif len(found) == 1:
@@ -422,10 +511,11 @@ def validate_record(
     benches = context.benches if context else BENCHES
     bench = run(_RowCheck.choice, "bench", benches, tuple(dict.fromkeys((*BENCHES, *benches))))
     direction = run(_direction, bench, context)
+    quantity = run(_quantity)
     amplitude = run(_number, "amplitude_m_s2")
-    sensitivity = run(_number, "sensitivity", True)
-    unit = run(_unit, device, context)
-    uncertainty = run(_uncertainty)
+    sensitivity = run(_sensitivity, quantity)
+    unit = run(_unit, device, context, quantity)
+    uncertainty = run(_uncertainty, quantity)
     coverage = run(_number, "coverage_factor")
     dof = run(_number, "dof", False, True)
     repeat_sd = run(_number, "repeat_sd")
@@ -434,26 +524,25 @@ def validate_record(
     note = run(_note)
     if check.errors:
         return check.errors
-    assert device and axis and frequency and bench and direction and sensitivity and unit
-    assert uncertainty is not None and note is not None
+    assert device and axis and frequency and bench and direction and unit and quantity
+    assert sensitivity is not None and uncertainty is not None and note is not None
     value, relative, entered = uncertainty
     expanded = relative_to_absolute(sensitivity, value) if relative else value
-    original_unit, given_sensitivity = None, sensitivity
-    if unit == MG_PER_LSB:
-        # The relative uncertainty is kept through the inversion (docs/domain.md §2).
-        converted = mg_per_lsb_to_canonical(sensitivity)
-        expanded, sensitivity = converted * expanded / sensitivity, converted
-        unit, original_unit = CANONICAL_UNIT, MG_PER_LSB
+    given_sensitivity = sensitivity
+    sensitivity, expanded, unit, original_unit = convert_units(quantity, sensitivity, expanded,
+                                                               unit)  # fmt: skip
     k = DEFAULT_COVERAGE_FACTOR if coverage is None else coverage
     sd, paired = repeat_problems(repeat_sd, n_repeats, sensitivity, given_sensitivity,
                                  original_unit)  # fmt: skip
-    for field, message in magnitude_problems(sensitivity, expanded, k, original_unit) + paired:
+    problems = magnitude_problems(sensitivity, expanded, k, original_unit, quantity)
+    for field, message in problems + paired:
         check.fail(field, message)
     if check.errors:
         return check.errors
     result = ResultRow(
         row=row, device=device, axis=axis, frequency_hz=frequency, bench=bench,
-        direction=direction, amplitude_m_s2=amplitude, sensitivity=sensitivity, unit=unit,
+        direction=direction, quantity=quantity, amplitude_m_s2=amplitude,
+        sensitivity=sensitivity, unit=unit,
         expanded_uncertainty=expanded,
         coverage_factor=k,
         dof=dof, lab=lab, note=note, original_unit=original_unit,
@@ -466,7 +555,8 @@ def validate_record(
 def _duplicate_key(row: ResultRow) -> tuple[object, ...]:
     amplitude = None if row.amplitude_m_s2 is None else float(f"{row.amplitude_m_s2:.12g}")
     frequency = float(f"{row.frequency_hz:.12g}")
-    return (row.lab, row.device, row.axis, frequency, row.bench, row.direction, amplitude)
+    return (row.lab, row.device, row.axis, frequency, row.bench, row.direction, row.quantity,
+            amplitude)  # fmt: skip
 
 
 def find_duplicates(rows: Iterable[ResultRow]) -> list[RowError]:

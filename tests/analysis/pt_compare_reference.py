@@ -26,6 +26,7 @@ def score_records(analysis: Analysis) -> list[dict[str, Any]]:
             "frequency_hz": float(t.frequency_hz[i]),
             "bench": t.bench[i],
             "direction": t.direction[i],
+            "quantity": t.quantity[i],  # the one key added since (docs/interfaces.md §4)
             "lab": t.lab[i],
             "value": float(t.value[i]),
             "expanded_uncertainty": float(t.expanded_uncertainty[i]),

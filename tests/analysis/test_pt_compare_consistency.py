@@ -184,7 +184,7 @@ def test_few_laboratories(tmp_path):
 def test_csv_section_in_long_form(doc_and_points):
     path, doc, _ = doc_and_points
     text = pt_compare(path, "csv")
-    section = text[text.index("device,axis,frequency_hz,bench,direction,test,") :]
+    section = text[text.index("device,axis,frequency_hz,bench,direction,quantity,test,") :]
     rows = list(csv.DictReader(io.StringIO(section)))
     x = [r for r in rows if (r["axis"], r["frequency_hz"]) == ("X", "10.0")]
     cochran = next(r for r in x if r["test"] == "cochran")

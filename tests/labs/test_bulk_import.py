@@ -262,7 +262,7 @@ def test_table_rules_give_the_upload_messages(round_):
         (b"lab,device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\n",
          "the table has no data rows"),
         (b"", "the table is empty; the first row must be the header: lab, device, axis, "
-              "frequency_hz, bench, direction, amplitude_m_s2, sensitivity, unit, "
+              "frequency_hz, bench, direction, quantity, amplitude_m_s2, sensitivity, unit, "
               "expanded_uncertainty, coverage_factor, dof, repeat_sd, n_repeats, note"),
         (b"lab,device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\n"
          b"L01,MEMS 1,X,5,linear,\xff,1\n",

@@ -127,4 +127,5 @@ def result_table(table: LocalTable) -> ResultTable:
         coverage_factor=table.coverage_factor,
         repeat_sd=table.repeat_sd,
         n_repeats=table.n_repeats,
+        quantity=table.quantity,
     )

@@ -26,7 +26,7 @@ from labs.access import (
 from labs.api import serializers as s
 from labs.api.views import ComparisonList, MeasurandList, SubmissionCollection
 from labs.models import LabAPIKey, Participant, Submission
-from labs.selectors import participant_for_lab, scope_flag
+from labs.selectors import participant_for_lab, point_unit_expression, scope_flag
 from labs.services import api_key_revoke, submission_from_records
 from proficiency.models import Comparison, Device
 from tests.labs.api import build_world, rows
@@ -80,7 +80,9 @@ def test_results_rows_equal_the_serializer(world):
 
 
 def test_measurands_and_comparisons_equal_the_serializer(world):
-    qs = measurement_points(world.cmp).annotate(in_scope=scope_flag(world.part_a))
+    qs = measurement_points(world.cmp).annotate(
+        in_scope=scope_flag(world.part_a), point_unit=point_unit_expression()
+    )  # the view's queryset
     assert len(qs) == 4 and all(p.in_scope for p in qs)
     expected = s.MeasurementPointSerializer(qs, many=True).data
     assert render(MeasurandList.rendering.data(qs)) == render(expected)
