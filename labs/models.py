@@ -368,8 +368,10 @@ class RawRecomputation(models.Model):
     for ``JOB_STALE_SECONDS`` is re-queued by the sweep and may be taken over.
 
     ``axes`` holds every axis of the record (``pt_sensitivity --format json``); the
-    ``sensitivity`` columns are the axis of the measurement point.  ``en`` compares the
-    reported and the recomputed value: (S_rep − S_rec) / √(U_rep² + U_rec²)."""
+    ``sensitivity`` columns are the figure of the measurement point's quantity kind (its
+    axis's magnitude or phase, or gyroscope axis G<axis>: docs/lifecycles.md §5).  ``en``
+    compares the reported and the recomputed value: D / √(U_rep² + U_rec²), D = S_rep −
+    S_rec, wrapped into (−180°, 180°] for a phase."""
 
     class Status(models.TextChoices):
         PENDING = "pending", "Pending"
