@@ -10,6 +10,7 @@ from django.db.models import F, Q
 from django.db.models.functions import NullIf
 from rest_framework_api_key.models import AbstractAPIKey, APIKeyManager
 
+from common import quantities
 from common.rows import JoinedQuery, ModelColumns
 from labs.importers.schema import ENTERED_MAX_CHARS
 from proficiency.models import (
@@ -367,8 +368,10 @@ class RawRecomputation(models.Model):
     for ``JOB_STALE_SECONDS`` is re-queued by the sweep and may be taken over.
 
     ``axes`` holds every axis of the record (``pt_sensitivity --format json``); the
-    ``sensitivity`` columns are the axis of the measurement point.  ``en`` compares the
-    reported and the recomputed value: (S_rep − S_rec) / √(U_rep² + U_rec²)."""
+    ``sensitivity`` columns are the figure of the measurement point's quantity kind (its
+    axis's magnitude or phase, or gyroscope axis G<axis>: docs/lifecycles.md §5).  ``en``
+    compares the reported and the recomputed value: D / √(U_rep² + U_rec²), D = S_rep −
+    S_rec, wrapped into (−180°, 180°] for a phase."""
 
     class Status(models.TextChoices):
         PENDING = "pending", "Pending"
@@ -423,11 +426,24 @@ class RawRecomputation(models.Model):
         return self.reported_expanded_uncertainty / self.reported_coverage_factor
 
     @property
+    def circular(self) -> bool:
+        """The point's kind is on the circle (a phase, ``common.quantities``)."""
+        return quantities.is_circular(self.record.measurement_point.quantity)
+
+    @property
     def relative_difference(self) -> float | None:
-        """(S_rec − S_rep) / S_rep in %."""
-        if self.sensitivity is None:
+        """(S_rec − S_rep) / S_rep in %; None for a phase (see :attr:`phase_difference`)."""
+        if self.sensitivity is None or self.circular:
             return None
         return 100 * (self.sensitivity - self.reported_value) / self.reported_value
+
+    @property
+    def phase_difference(self) -> float | None:
+        """For a phase point, D = φ_rep − φ_rec wrapped into (−180°, 180°] (docs/domain.md
+        §12), the difference En divides; None for another kind."""
+        if self.sensitivity is None or not self.circular:
+            return None
+        return quantities.wrap_degrees(self.reported_value - self.sensitivity)
 
 
 class Notice(models.Model):

@@ -8,6 +8,7 @@ from typing import cast
 from django.db.models import QuerySet
 
 from analysis.core.signals.records import Record
+from common import quantities
 from common.errors import NotVisible
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord
 from labs.raw import fit_figure_svg, read_record
@@ -55,16 +56,18 @@ def _bytes(raw: RawFile) -> bytes:
 
 
 def raw_record_figure(record: RawRecord) -> str | None:
-    """SVG of a stretch of the point's axis with the fitted sine at the rate found; None
-    until the recomputation has succeeded."""
+    """SVG of a stretch of the point's channel with the fitted sine at the rate found (the
+    gyroscope's ``g<axis>`` for an angular-rate point); None until the recomputation has
+    succeeded."""
     row = getattr(record, "recomputation", None)
     if row is None or row.status != RawRecomputation.Status.SUCCEEDED or row.fs_hz is None:
         return None
     point = record.measurement_point
-    axis = next((a for a in row.axes if a["axis"] == point.axis and a["sensitivity"]), None)
+    name = f"G{point.axis}" if point.quantity == quantities.ANGULAR_RATE else point.axis
+    axis = next((a for a in row.axes if a["axis"] == name and a["sensitivity"]), None)
     f = axis["analysis_frequency_hz"] if axis else point.frequency_hz
     mems, _ = raw_record_read(record)
-    return fit_figure_svg(mems, point.axis.lower(), f, row.fs_hz)
+    return fit_figure_svg(mems, name.lower(), f, row.fs_hz)
 
 
 def raw_point_choices(participant: Participant) -> QuerySet[MeasurementPoint]:

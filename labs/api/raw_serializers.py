@@ -37,6 +37,12 @@ class RawUploadRequestSerializer(serializers.Serializer):
     )
     direction = serializers.ChoiceField(choices=Direction.choices, required=False)
     amplitude_m_s2 = serializers.FloatField(required=False, allow_null=True)
+    quantity = serializers.CharField(
+        required=False,
+        allow_blank=True,
+        help_text="The point's quantity kind: magnitude (default, also for an empty value), "
+        "phase or angular_rate; it decides which recomputed figure is compared",
+    )
     channels = _meta_field("Channel names in file order, comma-separated or a JSON list")
     fs_nominal_hz = _meta_field()
     fs_hz = _meta_field()
@@ -103,6 +109,7 @@ class RawRecordSerializer(serializers.ModelSerializer):
     frequency_hz = serializers.FloatField(source="measurement_point.frequency_hz", read_only=True)
     bench = serializers.CharField(source="measurement_point.bench", read_only=True)
     direction = serializers.CharField(source="measurement_point.direction", read_only=True)
+    quantity = serializers.CharField(source="measurement_point.quantity", read_only=True)
     data_file = RawFileSerializer(read_only=True)
     reference_file = RawFileSerializer(read_only=True, allow_null=True)
     recomputation = RecomputationSerializer(read_only=True)
@@ -111,6 +118,6 @@ class RawRecordSerializer(serializers.ModelSerializer):
         model = RawRecord
         fields = [
             "id", "participant", "submission_version", "device", "axis", "frequency_hz",
-            "bench", "direction", "data_name", "data_file", "metadata", "reference_name",
-            "reference_file", "reference_metadata", "created_at", "recomputation",
+            "bench", "direction", "quantity", "data_name", "data_file", "metadata",
+            "reference_name", "reference_file", "reference_metadata", "created_at", "recomputation",
         ]  # fmt: skip
