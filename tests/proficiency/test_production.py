@@ -489,7 +489,8 @@ def test_a_real_worker_runs_a_task_from_rabbitmq(tmp_path, monkeypatch):
         cwd=ROOT, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
     )  # fmt: skip
     monkeypatch.delenv("CELERY_BROKER_URL", raising=False)  # Celery lets it override broker=
-    client = Celery(broker=AMQP_URL, backend="rpc://")
+    # not the current app: the service's tasks (shared_task) must stay bound to config.celery
+    client = Celery(broker=AMQP_URL, backend="rpc://", set_as_current=False)
     try:
         result = client.send_task("celery.accumulate", args=(4, 2), queue=queue)
         assert result.get(timeout=60) == [4, 2]
