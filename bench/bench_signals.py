@@ -121,7 +121,7 @@ def _pipeline(args: argparse.Namespace) -> int:
         + "".join(f"{'S_' + a + ' err':>13}" for a in "xyz")
     )
     for name, res in (("sine-fit", fit), ("paper", study)):
-        errs = [_relative_error(a) for a in res.axes]
+        errs = [_relative_error(a) for a in res.accelerometer_axes]
         print(
             f"{name:10}{res.fs_hz:14.5f}{res.fs_hz - FS_TRUE:13.5f}"
             + "".join(f"{e * 100:12.4f}%" for e in errs)
@@ -132,15 +132,16 @@ def _pipeline(args: argparse.Namespace) -> int:
         f"same record without imperfections, fs error: sine-fit {fs_clean['sine-fit']:.2e} Hz, "
         f"paper {fs_clean['paper']:+.2f} Hz"
     )
-    worst_fit = max(abs(_relative_error(a)) for a in fit.axes)
-    worst_paper = max(abs(_relative_error(a)) for a in study.axes)
+    worst_fit = max(abs(_relative_error(a)) for a in fit.accelerometer_axes)
+    worst_paper = max(abs(_relative_error(a)) for a in study.accelerometer_axes)
     print(
         f"\nworst sensitivity error: sine-fit {worst_fit * 100:.4f} %, "
         f"paper {worst_paper * 100:.4f} % ({worst_paper / worst_fit:.0f}× larger)"
     )
     print(
-        f"u(S_x) sine-fit {fit.axes[0].standard_uncertainty:.3f}, paper "
-        f"{study.axes[0].standard_uncertainty:.3f} D/(m/s²) (both dominated by the 0.5 % reference)"
+        f"u(S_x) sine-fit {fit.accelerometer_axes[0].standard_uncertainty:.3f}, paper "
+        f"{study.accelerometer_axes[0].standard_uncertainty:.3f} D/(m/s²) "
+        "(both dominated by the 0.5 % reference)"
     )
     return 0 if ok and worst_fit < worst_paper else 1
 

@@ -129,6 +129,11 @@ class SensitivityResult:
     """The excitation frequency the DUT's sine fits used (measured with a trusted clock),
     which the phase fits reuse; not in the JSON (``frequency_hz`` is the nominal f)."""
 
+    @property
+    def accelerometer_axes(self) -> list[AxisResult]:
+        """The accelerometer's axes (the gyroscope's, where the record has them, left out)."""
+        return [a for a in self.axes if isinstance(a, AxisResult)]
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "fs_hz": self.fs_hz,

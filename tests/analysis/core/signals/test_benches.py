@@ -28,7 +28,9 @@ CASES = {
 def errors(result, fs_true):
     """Relative sensitivity errors of every axis with a sensitivity, then |fs error| in Hz."""
     rel = [
-        abs(a.sensitivity / TRUTH["xyz".index(a.axis)] - 1) for a in result.axes if a.sensitivity
+        abs(a.sensitivity / TRUTH["xyz".index(a.axis)] - 1)
+        for a in result.accelerometer_axes
+        if a.sensitivity
     ]
     return np.array([*rel, abs(result.fs_hz - fs_true)])
 
@@ -53,7 +55,7 @@ def test_expected_components_of_the_test_plan():
 def test_clean_40_s_record_recovers_truth(tilt, rotation, axes_ok):
     result = record_sensitivity(linear_record(TRUTH, tilt=tilt, rotation=rotation))
     assert result.fs_hz == pytest.approx(1663.7, abs=0.01)
-    for a in result.axes:
+    for a in result.accelerometer_axes:
         if a.axis in axes_ok:
             assert a.status == "ok"
             assert a.sensitivity == pytest.approx(TRUTH["xyz".index(a.axis)], rel=5e-4)
@@ -84,7 +86,7 @@ def test_curvilinear_reference_from_the_test_plan():
     assert a_t == pytest.approx(49.78, abs=0.005) and 2 * a_r == pytest.approx(3.69, abs=0.005)
     mems, encoder = curvilinear_records(TRUTH)
     result = record_sensitivity(mems, encoder)
-    by_axis = {a.axis: a for a in result.axes}
+    by_axis = {a.axis: a for a in result.accelerometer_axes}
     assert by_axis["x"].reference_amplitude_m_s2 == pytest.approx(a_t, rel=1e-9)
     assert by_axis["y"].reference_amplitude_m_s2 == pytest.approx(a_r, rel=1e-9)
     assert by_axis["y"].analysis_frequency_hz == pytest.approx(20.0, rel=1e-9)
@@ -98,7 +100,7 @@ def test_iepe_reference_scaled_by_radius():
     a_ref = -0.145 * np.gradient(np.gradient(theta, 1 / fs), 1 / fs)  # tangential at r_ref
     ref = Record("iepe", ("ref",), a_ref[None, 2:-2], {"fs_hz": fs, "reference_radius_m": 0.145})
     result = record_sensitivity(mems, ref)
-    x = next(a for a in result.axes if a.axis == "x")
+    x = next(a for a in result.accelerometer_axes if a.axis == "x")
     assert "r_ref = 0.145" in result.reference_source
     assert x.sensitivity == pytest.approx(420.0, rel=2e-3)  # finite differences bias ~(πf/fs)²
 
@@ -118,7 +120,7 @@ def test_paper_mode_loses_amplitude_when_the_filter_is_designed_at_the_nominal_r
 
 def test_budget_combines_components_with_welch_satterthwaite():
     rec = linear_record(TRUTH, tilt=75, rotation=0, imp=Imperfections(noise_digits=5, seed=9))
-    x = next(a for a in record_sensitivity(rec).axes if a.axis == "x")
+    x = next(a for a in record_sensitivity(rec).accelerometer_axes if a.axis == "x")
     assert x.budget is not None and x.sensitivity is not None
     assert x.standard_uncertainty is not None
     comps = x.budget.components
@@ -150,7 +152,7 @@ def test_clipped_axis_is_flagged_and_not_used():
     data = rec.data.copy()
     data[0, 500:503] = 32767
     clipped = Record(rec.name, rec.channels, data, rec.meta, None, {"x": (3, 500)})
-    by_axis = {a.axis: a for a in record_sensitivity(clipped).axes}
+    by_axis = {a.axis: a for a in record_sensitivity(clipped).accelerometer_axes}
     assert by_axis["x"].status == "clipped" and by_axis["x"].sensitivity is None
     assert "first at sample 500" in by_axis["x"].note
     assert by_axis["z"].sensitivity == pytest.approx(425.0, rel=5e-4)
@@ -177,7 +179,7 @@ def test_reference_record_with_trusted_clock_measures_the_actual_frequency():
         "daq", ("ref",), 10.0 * np.cos(2 * np.pi * 10.003 * t + 0.3)[None, :], {"fs_hz": 10_000.0}
     )
     result = record_sensitivity(mems, ref)
-    z = next(a for a in result.axes if a.axis == "z")
+    z = next(a for a in result.accelerometer_axes if a.axis == "z")
     assert result.fs_hz == pytest.approx(1663.7, abs=0.01)
     assert z.reference_amplitude_m_s2 == pytest.approx(10.0, rel=1e-9)
     assert z.sensitivity == pytest.approx(425.0, rel=5e-4)
@@ -196,8 +198,10 @@ def test_dropped_samples_are_reported_and_do_not_bias_the_rate():
     rec = linear_record(TRUTH, tilt=75, rotation=0, imp=Imperfections(dropped=3, seed=4))
     result = record_sensitivity(rec)
     assert result.fs_hz == pytest.approx(1663.7, abs=0.01)
-    x = next(a for a in result.axes if a.axis == "x")
+    x = next(a for a in result.accelerometer_axes if a.axis == "x")
     assert "segments left out" in x.note
     assert x.sensitivity == pytest.approx(420.0, rel=1e-4)
-    clean = next(a for a in record_sensitivity(linear_record(TRUTH, tilt=75, rotation=0)).axes)
+    clean = next(
+        a for a in record_sensitivity(linear_record(TRUTH, tilt=75, rotation=0)).accelerometer_axes
+    )
     assert clean.note == ""
