@@ -5,6 +5,8 @@ from analysis.models import (
     AnalysisRun,
     AssignedValue,
     CompatibilityMatrix,
+    KitPointFit,
+    KitScore,
     Publication,
     Report,
     ReportBatch,
@@ -102,3 +104,23 @@ class RoundArchiveAdmin(RecordedByServicesAdmin):
     list_filter = ["status", "comparison"]
     search_fields = ["comparison__code", "participant__code", "error"]
     raw_id_fields = ["run", "participant"]
+
+
+@admin.register(KitPointFit)
+class KitPointFitAdmin(RecordedByServicesAdmin):
+    """A run's drift and link per point (docs/domain.md §13, §14): shown, not edited."""
+
+    list_display = ["measurement_point", "run", "reference", "chi2", "dof"]
+    list_filter = ["reference", "run__comparison"]
+    search_fields = ["measurement_point__device__name", "run__comparison__code"]
+    raw_id_fields = ["run", "measurement_point"]
+
+
+@admin.register(KitScore)
+class KitScoreAdmin(RecordedByServicesAdmin):
+    """A result's kit, drift correction and linked degree of equivalence."""
+
+    list_display = ["result", "run", "kit", "measured_on", "drift_correction", "linked_d", "u_link"]
+    list_filter = ["kit", "run__comparison"]
+    search_fields = ["result__submission__participant__code", "kit__name"]
+    raw_id_fields = ["run", "result"]

@@ -104,8 +104,7 @@ def test_a_run_stores_the_offline_tools_consistency_records(demo, settings, tmp_
     out = StringIO()
     call_command("pt_compare", str(export), "--format", "json", stdout=out)
     offline = json.loads(out.getvalue())["consistency"]
-    points = {(p.device.name, p.axis, p.frequency_hz, p.bench, p.direction): p.pk
-              for p in demo.measurement_points.select_related("device")}  # fmt: skip
+    points = {p.key.measurand: p.pk for p in demo.measurement_points.select_related("device")}
     assert len(offline) == len(records) == 81
     for rec in offline:
         pid = points[tuple(rec[k] for k in POINT_FIELDS)]

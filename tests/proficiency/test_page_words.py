@@ -78,6 +78,7 @@ def test_every_operation_has_a_tag_and_run_parameters_are_typed(tmp_path):
         "sigma_pt_value",
         "en_limit",
         "compare",
+        "drift_treatment",  # a round with kits: corrected or u_stab (docs/domain.md §13)
     }
 
 

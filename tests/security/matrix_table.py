@@ -337,6 +337,11 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    # drift and linking of a kit round (docs/domain.md §13, §14): the coordinators' only
+    "coordinator/<slug:code>/results/kits/": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
     # the round's archive: asked for by the round's coordinators (POST; built inline, then
     # back to the results page), its status line and the ready ZIP (the world holds the
     # coordinators' archive of the run)
