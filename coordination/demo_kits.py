@@ -7,9 +7,9 @@ the gyroscope's angular-rate sensitivity (Z axis, 5/8/10 Hz).  Eight laboratorie
 demo take part; ``Elbe Calibration Services`` is the pilot and reference laboratory, holding
 the first slot, slots between, and the last slot of both loops.  Kit B's copy of IMU 1 has a
 gyroscope whose sensitivity drifts (its pilot repeats show it, and so do the laboratories'
-results on it), so the run corrects the reference to each laboratory's date.  Kit B is
-still with its last laboratory, arrived and not yet sent on: a laboratory has a hand-over
-to log and the coordinator sees an overdue mark.
+results on it), so the run corrects the reference to each laboratory's date.  Kit B is on
+its way back to the pilot, its arrival not logged yet: the pilot has a hand-over to log
+(which changes no laboratory's date, so no score) and the coordinator sees a late mark.
 
 The values are plausible, not measured: magnitudes near the ±8 g range's 418 D/(m/s²),
 phases from the decimation filter's delay (≈1.1 ms: −2° at 5 Hz to −8° at 20 Hz), angular
@@ -54,8 +54,9 @@ DEVICES = (("IMU 1", 1.0, 1.004), ("IMU 2", 1.003, 0.997))  # name, magnitude, r
 MAGNITUDE_NOMINAL = 418.0  # D/(m/s²) at ±8 g
 RATE_NOMINAL = 1 / 0.07  # D/(°/s) at ±2000 dps: 70 mdps per digit
 FILTER_DELAY_S = 1.1e-3  # the accelerometer's decimation filter: phase = −360° f τ
-#: how Kit B's copies differ from Kit A's: relative (magnitude, rate) and phase in degrees
-KIT_B_OFFSET = (0.0025, -0.003, 0.2)
+#: how Kit B's copies differ from Kit A's, relative (magnitude, angular rate); their phases
+#: agree, the delay being the digital filter's, the same in every copy at one data rate
+KIT_B_OFFSET = (0.0025, -0.003)
 #: Kit B's IMU 1 gyroscope: its angular-rate sensitivity changes by this per day
 RATE_DRIFT_PER_DAY = 0.0005
 PILOT = "Elbe Calibration Services"
@@ -68,8 +69,8 @@ LOOPS = {
               "Castile Sensor Laboratory", None, "Fjord Measurement Institute"),
 }  # fmt: skip
 KIT_STARTS = {"Kit A": dt.date(2025, 2, 3), "Kit B": dt.date(2025, 2, 10)}
-#: Kit B's last laboratory has it (arrival logged) and has not sent it on yet
-HELD_BY_LAST = "Kit B"
+#: Kit B is sent back to the pilot for its last slot and its arrival is not logged yet
+IN_TRANSIT = "Kit B"
 
 
 @dataclass(frozen=True)
@@ -169,8 +170,7 @@ def _kits(comparison: Comparison, participants: dict[str, Participant]) -> dict[
         for name, slot in zip(names, slots, strict=True):
             middle = (slot.starts_on - start).days + (slot.ends_on - slot.starts_on).days / 2
             turns[name].append(Turn(kit_name, middle))
-        held = len(slots) - 1 if kit_name == HELD_BY_LAST else len(slots)
-        _circulate(kit, slots, held)
+        _circulate(kit, slots, pending=len(slots) if kit_name == IN_TRANSIT else None)
         _pilot_repeats(kit, turns[PILOT], start)
     return turns
 
@@ -179,16 +179,16 @@ def _noon(day: dt.date) -> dt.datetime:
     return dt.datetime.combine(day, dt.time(12), tzinfo=dt.UTC)
 
 
-def _circulate(kit: Kit, slots: list[KitSlot], held: int) -> None:
+def _circulate(kit: Kit, slots: list[KitSlot], pending: int | None) -> None:
     """The hand-overs of the loop, each holder receiving the kit on its slot's first day and
-    sending it on at its end, up to slot ``held`` (1-based), which has the kit and has not
-    sent it on (the whole loop and the return when ``held`` is the number of slots)."""
+    sending it on at its end, and the kit's return; up to slot ``pending`` (1-based), sent
+    and not logged as received, where one is given."""
     sent = handover_dispatch(kit=kit, from_slot=None, user=None, carrier_note="courier",
                              at=_noon(slots[0].starts_on - dt.timedelta(days=2)))  # fmt: skip
     for i, slot in enumerate(slots, 1):
-        handover_receive(handover=sent, user=None, condition="good", at=_noon(slot.starts_on))
-        if i == held and held < len(slots):
+        if i == pending:
             return
+        handover_receive(handover=sent, user=None, condition="good", at=_noon(slot.starts_on))
         sent = handover_dispatch(kit=kit, from_slot=slot, user=None, carrier_note="courier",
                                  at=_noon(slot.ends_on))  # fmt: skip
     handover_receive(handover=sent, user=None, condition="good",
@@ -200,7 +200,7 @@ def _truth(point: MeasurementPoint, kit: str, day: float) -> float:
     magnitude, rate = next((m, r) for n, m, r in DEVICES if n == point.device.name)
     b = kit == "Kit B"
     if point.quantity == PHASE:
-        return -360.0 * point.frequency_hz * FILTER_DELAY_S + (KIT_B_OFFSET[2] if b else 0.0)
+        return -360.0 * point.frequency_hz * FILTER_DELAY_S
     if point.quantity == ANGULAR_RATE:
         value = RATE_NOMINAL * rate * (1 + (KIT_B_OFFSET[1] if b else 0.0))
         return value + (RATE_DRIFT_PER_DAY * day if b and point.device.name == "IMU 1" else 0.0)
@@ -244,12 +244,12 @@ def _results(points: list[MeasurementPoint], name: str,
 
 def _pilot_repeats(kit: Kit, turns: list[Turn], start: dt.date) -> None:
     """The pilot's magnitude and angular-rate measurements of the kit in each of its slots
-    but the pending last one: the copy's truth with the pilot's bias and a small scatter
-    (a phase is not drift-fitted, docs/domain.md §13, so it is not repeated)."""
+    but a last one the kit has not reached: the copy's truth with the pilot's bias and a
+    small scatter (a phase is not drift-fitted, docs/domain.md §13, so it is not repeated)."""
     rng = _lab_rng(kit.name)
     rel = _biases(_lab_rng(PILOT))
     mine = [t for t in turns if t.kit == kit.name]
-    if kit.name == HELD_BY_LAST:
+    if kit.name == IN_TRANSIT:
         mine = mine[:-1]
     points = kit.comparison.measurement_points.exclude(quantity=PHASE).select_related("device")
     lines = ["device,axis,frequency_hz,bench,direction,amplitude_m_s2,quantity,measured_on,"

@@ -52,7 +52,7 @@ class Command(BaseCommand):
                 f"Kit round {kits.code}: {kits.measurement_points.count()} measurement points "
                 "(magnitude, phase, angular rate), "
                 f"{kits.participants.count()} participants, two kits (Kit B's IMU 1 gyroscope "
-                f"drifting, Kit B still with its last laboratory), "
+                f"drifting, Kit B on its way back to the pilot), "
                 f"{kits.get_status_display().lower()}."
             )
         if summary.created_users:
