@@ -87,10 +87,10 @@ def kits_round(coordinator: Any) -> Comparison:
         defaults={
             "title": "IMU sensitivity: magnitude, phase and angular rate in two kits (demo)",
             "description": (
-                "Two LSM6DSR IMUs in two kits, each circulated in its own loop with Elbe "
-                "Calibration Services as pilot: accelerometer sensitivity magnitude and phase "
-                "on the linear bench (Z, 5/10/20 Hz), gyroscope angular-rate sensitivity on "
-                "the rotating table (Z, 5/8/10 Hz)."
+                "Two LSM6DSR IMUs in two kits, each circulated in its own loop with the pilot "
+                "laboratory before, between and after: accelerometer sensitivity magnitude and "
+                "phase on the linear bench (Z, 5/10/20 Hz), gyroscope angular-rate sensitivity "
+                "on the rotating table (Z, 5/8/10 Hz)."
             ),
             "protocol": protocols.CUSTOM,
             "status": ComparisonStatus.CLOSED,

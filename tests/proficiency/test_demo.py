@@ -274,6 +274,8 @@ def test_the_kits_round_has_three_kinds_two_kits_and_a_drifting_gyroscope(demo_k
     assert counts() == before
     c = Comparison.objects.get(code=KITS_ROUND_CODE)
     assert c.status == "analysed" and c.participants.count() == 8
+    names = Laboratory.objects.filter(participations__comparison=c).values_list("name", flat=True)
+    assert [n for n in names if n in c.title + c.description] == []  # codes only to the labs
     kinds = {q: c.measurement_points.filter(quantity=q).count()
              for q in ("magnitude", "phase", "angular_rate")}  # fmt: skip
     assert kinds == {"magnitude": 6, "phase": 6, "angular_rate": 6}
