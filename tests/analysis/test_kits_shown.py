@@ -166,3 +166,26 @@ def test_a_table_of_two_kinds_writes_each_rows_unit(client, django_capture_on_co
         assert k.linked_d is not None and k.linked_u is not None
         d = numbers.round_to_uncertainty(k.linked_d, 2 * k.linked_u, sign=True)
         assert f'{d} <span class="small text-body-secondary">{unit}</span>' in table
+
+
+def test_the_summary_report_gives_the_largest_u_link_per_unit(django_capture_on_commit_callbacks):
+    """A kit round of a magnitude and an angular rate: the summary report's largest u_link of
+    a laboratory is one per unit, named (a magnitude's D/(m/s^2) and an angular rate's
+    D/(deg/s) are not compared); a round of one unit keeps its bare number (above)."""
+    r = make_round()
+    rate = r["points"][1]
+    rate.quantity = "angular_rate"
+    rate.save(update_fields=["quantity"])
+    Result.objects.filter(measurement_point=rate).update(unit="D/(deg/s)")
+    add_kit(r, "Kit A", r["labs"][:3])
+    add_kit(r, "Kit B", r["labs"][3:], offset=0.6)
+    run = started(r["comparison"], django_capture_on_commit_callbacks)
+    clear_run_contexts()
+    summary = " ".join("\n".join(pdf_text(render_report(report_data(run=run)))).split())
+    r["run"] = run
+    per_unit = [row_of(r, "L5", p).u_link for p in (0, 1)]
+    assert all(u is not None for u in per_unit)
+    row = summary[summary.index("L5 Kit B") : summary.index("L6 Kit B")]
+    cells = {f"{numbers.uncertainty(per_unit[0])} D/(m/s^2)",
+             f"{numbers.uncertainty(per_unit[1])} D/(deg/s)"}  # fmt: skip
+    assert all(c in row for c in cells) and row.count("; ") == 1
