@@ -13,7 +13,8 @@ service and published by its publication job, so every laboratory has a history 
 (docs/domain.md §4.1).  IMU-2024-DEMO's devices travelled in two kits, each in its own loop
 with the linear-bench laboratory as pilot (docs/domain.md §15): one arrival was damaged,
 and the pilot's repeats show Kit B's MEMS 1 drifting (§13).  Everything is created
-idempotently: running the loader twice leaves the same rows.
+idempotently: running the loader twice leaves the same rows.  A two-kit round of magnitude,
+phase and angular-rate points, ``IMU-2025-KITS``, is in coordination/demo_kits.py.
 """
 
 from __future__ import annotations
@@ -82,6 +83,9 @@ EARLIER_ROUND = True
 PREVIOUS_DEVICES = (1, 2)
 PREVIOUS_FREQUENCIES = (5.0, 10.0)
 PREVIOUS_DIRECTIONS = ("vertical", "tangential")
+#: whether ``load_demo`` makes IMU-2025-KITS (coordination/demo_kits.py): the tests turn it
+#: off unless they ask for it (tests/conftest.py; its run costs a second per demo loaded)
+KITS_ROUND = True
 #: the round whose call for participation is open in the demo
 CALL_CODE = "IMU-2025-CALL"
 #: its enrolment closes, and its results are due, this long after the demo is first loaded
@@ -193,6 +197,7 @@ class DemoSummary:
     comparison: Comparison
     call: Comparison | None = None
     previous: Comparison | None = None
+    kits_round: Comparison | None = None
     created_users: dict[str, str] = field(default_factory=dict)  # username -> password
     existing_users: list[str] = field(default_factory=list)
 
@@ -250,6 +255,10 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
     _kits(comparison)
     if EARLIER_ROUND:
         summary.previous = _previous(coordinator, labs)
+    if KITS_ROUND:  # imported here: demo_kits reads this module's laboratories
+        from coordination.demo_kits import kits_round
+
+        summary.kits_round = kits_round(coordinator)
     return summary
 
 

@@ -140,6 +140,22 @@ def demo_kit_drift(monkeypatch):
     monkeypatch.setattr("coordination.demo.KITS", demo.DEMO_KITS)
 
 
+@pytest.fixture(autouse=True)
+def demo_without_kits_round(request, monkeypatch):
+    """The demo loads without IMU-2025-KITS, whose analysis run would cost every test that
+    loads the demo a second and add rows to what it counts; a test of that round asks for
+    ``demo_kits_round``."""
+    if not request.config.pluginmanager.hasplugin("django"):
+        return
+    monkeypatch.setattr("coordination.demo.KITS_ROUND", False)
+
+
+@pytest.fixture
+def demo_kits_round(monkeypatch):
+    """``load_demo`` makes IMU-2025-KITS too, as ``make run`` does."""
+    monkeypatch.setattr("coordination.demo.KITS_ROUND", True)
+
+
 @pytest.fixture
 def demo_earlier_round(monkeypatch):
     """``load_demo`` makes the earlier round too, as ``make run`` does."""

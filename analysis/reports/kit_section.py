@@ -39,13 +39,14 @@ def kits_section(data: ReportData) -> list[Flowable]:
     if k.links and data.is_participant:
         flow += [Spacer(1, 2 * mm), _links_table(data, k)]
     elif k.links and k.linked_round:
-        flow += [Spacer(1, 2 * mm), _labs_table(k)]
+        flow += [Spacer(1, 2 * mm), _labs_table(data, k)]
     return flow
 
 
-def _labs_table(k: KitSection) -> Flowable:
+def _labs_table(data: ReportData, k: KitSection) -> Flowable:
     """The summary: per participant (by code) its kit, its points linked and not, the
-    largest |d|/U(d) and the largest u_link over its points."""
+    largest |d|/U(d) and the largest u_link over its points (one per unit, named, where its
+    points have several: a magnitude's and an angular rate's are not compared)."""
     by_code: dict[str, list[KitLink]] = {}
     for link in k.links:
         by_code.setdefault(link.code, []).append(link)
@@ -53,11 +54,22 @@ def _labs_table(k: KitSection) -> Flowable:
     for code, links in sorted(by_code.items()):
         done = [x for x in links if x.d is not None and x.big_u is not None]
         ratio = max((abs(x.d) / x.big_u for x in done if x.big_u and x.d is not None), default=None)
-        u_link = max((x.u_link for x in done if x.u_link is not None), default=None)
         kits = ", ".join(sorted({x.kit for x in links}))
-        rows.append([code, kits, str(len(done)), str(len(links) - len(done)),
-                     "–" if ratio is None else f"{ratio:.2f}", unc(u_link)])  # fmt: skip
-    return table(rows, [16 * mm, 30 * mm, 26 * mm, 22 * mm, 32 * mm, 30 * mm])
+        shown = "–" if ratio is None else f"{ratio:.2f}"
+        rows.append([code, kits, str(len(done)), str(len(links) - len(done)), shown,
+                     _largest_u_link(data, done)])  # fmt: skip
+    return table(rows, [14 * mm, 24 * mm, 22 * mm, 16 * mm, 26 * mm, 54 * mm])
+
+
+def _largest_u_link(data: ReportData, done: list[KitLink]) -> str:
+    by_unit: dict[str, float] = {}
+    for x in done:
+        if x.u_link is not None:
+            unit = data.points[x.point].unit
+            by_unit[unit] = max(by_unit.get(unit, x.u_link), x.u_link)
+    if len(by_unit) < 2:
+        return unc(next(iter(by_unit.values()), None))
+    return "; ".join(f"{unc(u)} {unit}" for unit, u in by_unit.items())  # in point order
 
 
 def _links_table(data: ReportData, k: KitSection) -> Flowable:

@@ -14,6 +14,7 @@ from analysis.models import KitScore
 from analysis.reports.assemble import clear_run_contexts, report_data
 from analysis.reports.render import render_report
 from common import numbers
+from labs.models import Result
 from proficiency.models import ComparisonStatus
 from tests.analysis.kit_rounds import add_kit, make_round, started
 from tests.analysis.reports.conftest import pdf_text
@@ -140,3 +141,51 @@ def test_chi2_is_written_to_three_significant_digits(client, linked):
     assert fit.chi2 is not None and fit.dof == 6
     html = client.get(f"/coordinator/{linked['comparison'].code}/results/kits/").content.decode()
     assert f'<td class="num">{numbers.significant(fit.chi2, 3)}</td>' in html
+
+
+def test_a_table_of_two_kinds_writes_each_rows_unit(client, django_capture_on_commit_callbacks):
+    """A kit round of a magnitude and an angular rate: the participants' table has no one
+    unit, so the headings say each row has its own and each d carries it (it once said so
+    and showed none)."""
+    r = make_round()
+    rate = r["points"][1]
+    rate.quantity = "angular_rate"
+    rate.save(update_fields=["quantity"])
+    Result.objects.filter(measurement_point=rate).update(unit="D/(deg/s)")
+    add_kit(r, "Kit A", r["labs"][:3])
+    add_kit(r, "Kit B", r["labs"][3:], offset=0.6)
+    coordinator = UserFactory.create()
+    r["comparison"].coordinators.add(coordinator)
+    r["run"] = started(r["comparison"], django_capture_on_commit_callbacks)
+    client.force_login(coordinator)
+    html = client.get(f"/coordinator/{r['comparison'].code}/results/kits/").content.decode()
+    table = html[html.index("Each participant's kit") :]
+    assert table[: table.index("</thead>")].count("(unit in each row)") == 5
+    for point, unit in ((0, "D/(m/s^2)"), (1, "D/(deg/s)")):
+        k = row_of(r, "L5", point)
+        assert k.linked_d is not None and k.linked_u is not None
+        d = numbers.round_to_uncertainty(k.linked_d, 2 * k.linked_u, sign=True)
+        assert f'{d} <span class="small text-body-secondary">{unit}</span>' in table
+
+
+def test_the_summary_report_gives_the_largest_u_link_per_unit(django_capture_on_commit_callbacks):
+    """A kit round of a magnitude and an angular rate: the summary report's largest u_link of
+    a laboratory is one per unit, named (a magnitude's D/(m/s^2) and an angular rate's
+    D/(deg/s) are not compared); a round of one unit keeps its bare number (above)."""
+    r = make_round()
+    rate = r["points"][1]
+    rate.quantity = "angular_rate"
+    rate.save(update_fields=["quantity"])
+    Result.objects.filter(measurement_point=rate).update(unit="D/(deg/s)")
+    add_kit(r, "Kit A", r["labs"][:3])
+    add_kit(r, "Kit B", r["labs"][3:], offset=0.6)
+    run = started(r["comparison"], django_capture_on_commit_callbacks)
+    clear_run_contexts()
+    summary = " ".join("\n".join(pdf_text(render_report(report_data(run=run)))).split())
+    r["run"] = run
+    per_unit = [row_of(r, "L5", p).u_link for p in (0, 1)]
+    assert all(u is not None for u in per_unit)
+    row = summary[summary.index("L5 Kit B") : summary.index("L6 Kit B")]
+    cells = {f"{numbers.uncertainty(per_unit[0])} D/(m/s^2)",
+             f"{numbers.uncertainty(per_unit[1])} D/(deg/s)"}  # fmt: skip
+    assert all(c in row for c in cells) and row.count("; ") == 1

@@ -157,3 +157,27 @@ def test_scores_api_filters_by_quantity_and_the_scores_page_names_the_kind(round
     assert page.status_code == 200
     body = page.content.decode()
     assert body.count("tangential · phase") == 3
+
+
+def test_the_assigned_values_of_a_magnitude_and_a_phase_are_not_under_one_unit(round_):
+    """The results page's assigned values: a round of magnitudes and phases has no one unit,
+    so the headings say each row has its own and the phase's x_pt is in degrees (the heading
+    once read the device's D/(m/s^2) over a phase)."""
+    comparison, points, _ = round_
+    run = analysis_run_start(comparison=comparison, user=None)
+    run.refresh_from_db()
+    assert run.status == "succeeded", run.error
+    coordinator = UserFactory.create()
+    comparison.coordinators.add(coordinator)
+    client = Client()
+    client.force_login(coordinator)
+    page = client.get(f"/coordinator/{comparison.code}/results/")
+    assert page.status_code == 200
+    body = page.content.decode()
+    table = body[body.index("Assigned value per measurement point") :]
+    table = table[: table.index("</table>")]
+    assert "(D/(m/s^2))" not in table and table.count("(unit in each row)") == 4
+    phase = AssignedValue.objects.get(run=run, measurement_point=points["phase"])
+    assert 1.95 <= phase.expanded_uncertainty < 2.05  # U = 2.0°: x_pt to 0.1° (§3.1)
+    shown = f"{phase.value:.1f}"
+    assert f'{shown} <span class="small text-body-secondary">°</span>' in table

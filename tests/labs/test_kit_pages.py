@@ -127,3 +127,13 @@ def test_the_coordinator_stores_the_pilots_repeats_and_reads_the_drift(db):
     assert r.status_code == 302
     page = coord.get(base).content.decode()
     assert "drifting</span>" in page and "4 Jan 2027 – 29 Mar 2027" in page
+
+
+def test_the_pilots_file_help_names_the_quantity_column(db):
+    """A round of phases or angular rates needs the optional ``quantity`` column of the
+    pilot's file (docs/domain.md §15): the kits page's help says so."""
+    c, devices, _, _, coord = _world(db)
+    coord.post(f"/coordinator/{c.code}/kits/new/", {"name": "Kit A",
+                                                    f"serial_{devices[0].pk}": "SN-1"})  # fmt: skip
+    page = coord.get(f"/coordinator/{c.code}/kits/").content.decode()
+    assert "<code>quantity</code> optional (magnitude, phase or angular_rate" in page

@@ -256,3 +256,48 @@ def test_the_demo_round_circulated_two_kits_and_one_drifts(demo_kit_drift):
     assert len(mems1) == 9 and {r.model for r in mems1} == {"linear"}
     assert all(abs(r.slope_per_day - 0.012) < 0.002 for r in mems1)
     assert {r.model for r in drifting if r not in mems1} == {"constant"}
+
+
+def test_the_kits_round_has_three_kinds_two_kits_and_a_drifting_gyroscope(demo_kits_round):
+    """IMU-2025-KITS (coordination/demo_kits.py): 18 points of three kinds, eight
+    laboratories with plausible results, Kit B's IMU 1 angular rate drifting, analysed; made
+    once (a second load adds no row)."""
+    from analysis.models import KitPointFit, KitScore
+    from coordination.demo_kits import KITS_ROUND_CODE, RATE_NOMINAL
+    from labs.models import Handover
+
+    out = StringIO()
+    call_command("load_demo", password="demo-password-1", stdout=out)
+    assert f"Kit round {KITS_ROUND_CODE}: 18 measurement points" in out.getvalue()
+    before = counts()
+    call_command("load_demo", stdout=StringIO())
+    assert counts() == before
+    c = Comparison.objects.get(code=KITS_ROUND_CODE)
+    assert c.status == "analysed" and c.participants.count() == 8
+    names = Laboratory.objects.filter(participations__comparison=c).values_list("name", flat=True)
+    assert [n for n in names if n in c.title + c.description] == []  # codes only to the labs
+    kinds = {q: c.measurement_points.filter(quantity=q).count()
+             for q in ("magnitude", "phase", "angular_rate")}  # fmt: skip
+    assert kinds == {"magnitude": 6, "phase": 6, "angular_rate": 6}
+    results = Result.objects.filter(submission__participant__comparison=c)
+    # 6 labs at all 18 points, the linear lab at 12, the curvilinear lab at 6
+    assert results.count() == 6 * 18 + 12 + 6
+    for r in results.select_related("measurement_point"):
+        p, u = r.measurement_point, r.expanded_uncertainty
+        if p.quantity == "phase":  # the filter's delay: −360° · f · 1.1 ms, lab scatter
+            assert r.unit == "deg" and abs(r.value + 0.396 * p.frequency_hz) < 1.0 and u < 1
+        elif p.quantity == "angular_rate":  # 1/0.07 D/(°/s) at ±2000 dps, U about 0.5 %
+            assert r.unit == "D/(deg/s)" and abs(r.value / RATE_NOMINAL - 1) < 0.02
+            assert 0.003 < u / r.value < 0.008
+        else:
+            assert r.unit == "D/(m/s^2)" and abs(r.value / 418 - 1) < 0.02
+    run = c.analysis_runs.get()
+    assert run.status == "succeeded"
+    fits = KitPointFit.objects.filter(run=run).select_related("measurement_point__device")
+    drifting = sorted((f.measurement_point.device.name, f.measurement_point.quantity, d["kit"])
+                      for f in fits for d in f.drift if d["model"] == "linear")  # fmt: skip
+    assert drifting == [("IMU 1", "angular_rate", "Kit B")] * 3
+    assert KitScore.objects.filter(run=run, linked_d__isnull=False).count() == results.exclude(
+        measurement_point__quantity="phase").count()  # fmt: skip
+    # Kit B is on its way back to the pilot: one hand-over not received
+    assert Handover.objects.filter(kit__comparison=c, received_at__isnull=True).count() == 1

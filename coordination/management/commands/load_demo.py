@@ -1,5 +1,6 @@
-"""python manage.py load_demo — the demo comparison IMU-2024-DEMO, the open call IMU-2025-CALL
-and the published round before them, IMU-2023-DEMO (idempotent)."""
+"""python manage.py load_demo — the demo comparison IMU-2024-DEMO, the open call IMU-2025-CALL,
+the published round before them, IMU-2023-DEMO, and the analysed two-kit round of magnitude,
+phase and angular-rate points, IMU-2025-KITS (idempotent)."""
 
 from django.core.management.base import BaseCommand
 
@@ -10,7 +11,8 @@ class Command(BaseCommand):
     help = (
         "Create the demo comparison IMU-2024-DEMO with 12 laboratories, the round "
         "IMU-2025-CALL with its call for participation open, and the same laboratories' "
-        "published round IMU-2023-DEMO, their history (idempotent)."
+        "published round IMU-2023-DEMO, their history, and the analysed two-kit round "
+        "IMU-2025-KITS of magnitude, phase and angular-rate points (idempotent)."
     )
 
     def add_arguments(self, parser):
@@ -43,6 +45,15 @@ class Command(BaseCommand):
                 f"measurement points, {previous.participants.count()} participants, "
                 f"{previous.get_status_display().lower()} (its publication is a job, done "
                 "when the task queue runs it; each laboratory's history is at /lab/history/)."
+            )
+        kits = summary.kits_round
+        if kits is not None:
+            self.stdout.write(
+                f"Kit round {kits.code}: {kits.measurement_points.count()} measurement points "
+                "(magnitude, phase, angular rate), "
+                f"{kits.participants.count()} participants, two kits (Kit B's IMU 1 gyroscope "
+                f"drifting, Kit B on its way back to the pilot), "
+                f"{kits.get_status_display().lower()}."
             )
         if summary.created_users:
             self.stdout.write("Demo logins (shown once; write them down):")
