@@ -80,6 +80,7 @@ def test_a_kit_round_of_three_kinds_from_the_kits_to_the_published_scores(
     back = Handover.objects.get(kit=kit_b, to_slot__participant=pilot, from_slot__position=8)
     assert back.condition == "good" and back.received_at is not None
     home = Handover.objects.get(kit=kit_b, to_slot=None)
+    assert home.from_slot is not None
     assert (home.carrier_note, home.from_slot.participant) == ("DHL 7731", pilot)
 
     # the coordinator runs the analysis (eager Celery: done when the page answers)
