@@ -1,5 +1,5 @@
 """The demo's two-kit round of magnitude, phase and angular-rate points, IMU-2025-KITS, walked
-as issue 20's "Done when" says (docs/domain.md §12–§15): the coordinator reads the kits (Kit B
+as its people run it (docs/domain.md §12–§15): the coordinator reads the kits (Kit B
 late back to the pilot); the pilot logs its arrival and its return; the coordinator runs the
 analysis and reads a phase point's assigned value and a laboratory's D in degrees, the Kits
 and linking tab's d and u_link, and the scores API with the quantity and u_link; after
