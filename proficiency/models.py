@@ -234,6 +234,10 @@ class Device(models.Model):
 QUANTITY_CHOICES = [(k.name, k.label.capitalize()) for k in quantities.KINDS]
 
 
+#: a point is unique in its round by these (and its amplitude, where it has one)
+_POINT_UNIQUE = ["comparison", "device", "axis", "frequency_hz", "bench", "direction", "quantity"]
+
+
 class MeasurementPoint(models.Model):
     """One measurand: device × axis × frequency × bench × direction × quantity kind (×
     optional amplitude)."""
@@ -270,29 +274,12 @@ class MeasurementPoint(models.Model):
         ordering = ["device__name", "bench", "direction", "quantity", "axis", "frequency_hz"]
         constraints = [
             models.UniqueConstraint(
-                fields=[
-                    "comparison",
-                    "device",
-                    "axis",
-                    "frequency_hz",
-                    "bench",
-                    "direction",
-                    "quantity",
-                ],
+                fields=_POINT_UNIQUE,
                 condition=Q(amplitude_m_s2__isnull=True),
                 name="point_unique_no_amplitude",
             ),
             models.UniqueConstraint(
-                fields=[
-                    "comparison",
-                    "device",
-                    "axis",
-                    "frequency_hz",
-                    "bench",
-                    "direction",
-                    "quantity",
-                    "amplitude_m_s2",
-                ],
+                fields=[*_POINT_UNIQUE, "amplitude_m_s2"],
                 condition=Q(amplitude_m_s2__isnull=False),
                 name="point_unique_with_amplitude",
             ),

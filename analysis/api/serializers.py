@@ -51,6 +51,13 @@ class AnalysisRunSerializer(serializers.ModelSerializer):
         read_only_fields = fields
 
 
+def _kit_number(help_text: str) -> serializers.FloatField:
+    """A number of a round with kits (docs/domain.md §13, §14): read only, null elsewhere."""
+    return serializers.FloatField(
+        read_only=True, allow_null=True, default=None, help_text=help_text
+    )
+
+
 class ScoreSerializer(serializers.ModelSerializer):
     lab = serializers.CharField(source="result.submission.participant.code")
     device = serializers.CharField(source="result.measurement_point.device.name")
@@ -73,32 +80,14 @@ class ScoreSerializer(serializers.ModelSerializer):
         default=None,
         help_text="the kit the result was measured on",
     )
-    linked_d = serializers.FloatField(
-        read_only=True,
-        allow_null=True,
-        default=None,
-        help_text="d against the one reference across the kits",
+    linked_d = _kit_number("d against the one reference across the kits")
+    linked_expanded_uncertainty = _kit_number("U(d) = 2·u(d)")
+    u_link = _kit_number("the part of u(d) that is not the lab's own")
+    drift_correction = _kit_number(
+        "added to the value for a drifting kit: −b·(t − t̄); 0 where none"
     )
-    linked_expanded_uncertainty = serializers.FloatField(
-        read_only=True, allow_null=True, default=None, help_text="U(d) = 2·u(d)"
-    )
-    u_link = serializers.FloatField(
-        read_only=True,
-        allow_null=True,
-        default=None,
-        help_text="the part of u(d) that is not the lab's own",
-    )
-    drift_correction = serializers.FloatField(
-        read_only=True,
-        allow_null=True,
-        default=None,
-        help_text="added to the value for a drifting kit: −b·(t − t̄); 0 where none",
-    )
-    u_drift = serializers.FloatField(
-        read_only=True,
-        allow_null=True,
-        default=None,
-        help_text="standard uncertainty added for a drifting kit: |t − t̄|·u(b) or u_stab(t)",
+    u_drift = _kit_number(
+        "standard uncertainty added for a drifting kit: |t − t̄|·u(b) or u_stab(t)"
     )
 
     def get_z_used(self, score: Score) -> str | None:
