@@ -70,6 +70,18 @@ def round_():
     return comparison, points, participants
 
 
+def analysed_by_its_coordinator(comparison) -> tuple:
+    """The round's succeeded run and a client signed in as its coordinator."""
+    run = analysis_run_start(comparison=comparison, user=None)
+    run.refresh_from_db()
+    assert run.status == "succeeded", run.error
+    coordinator = UserFactory.create()
+    comparison.coordinators.add(coordinator)
+    client = Client()
+    client.force_login(coordinator)
+    return run, client
+
+
 def test_phase_round_assigned_value_d_and_en_by_hand(round_):
     comparison, points, _ = round_
     stored = dict(
@@ -134,13 +146,7 @@ def test_api_and_downloads_carry_the_quantity(round_):
 
 def test_scores_api_filters_by_quantity_and_the_scores_page_names_the_kind(round_):
     comparison, _, _ = round_
-    run = analysis_run_start(comparison=comparison, user=None)
-    run.refresh_from_db()
-    assert run.status == "succeeded", run.error
-    coordinator = UserFactory.create()
-    comparison.coordinators.add(coordinator)
-    client = Client()
-    client.force_login(coordinator)
+    _, client = analysed_by_its_coordinator(comparison)
     answer = client.get(f"/api/v1/comparisons/{comparison.code}/scores/?quantity=phase")
     assert answer.status_code == 200
     rows = answer.json()["results"]
@@ -164,13 +170,7 @@ def test_the_assigned_values_of_a_magnitude_and_a_phase_are_not_under_one_unit(r
     so the headings say each row has its own and the phase's x_pt is in degrees (the heading
     once read the device's D/(m/s^2) over a phase)."""
     comparison, points, _ = round_
-    run = analysis_run_start(comparison=comparison, user=None)
-    run.refresh_from_db()
-    assert run.status == "succeeded", run.error
-    coordinator = UserFactory.create()
-    comparison.coordinators.add(coordinator)
-    client = Client()
-    client.force_login(coordinator)
+    run, client = analysed_by_its_coordinator(comparison)
     page = client.get(f"/coordinator/{comparison.code}/results/")
     assert page.status_code == 200
     body = page.content.decode()
