@@ -53,7 +53,7 @@ _RESULT_FIELDS = {
     "amplitude_m_s2": "measurement_point__amplitude_m_s2", "sensitivity": "value",
     "unit": "unit", "expanded_uncertainty": "expanded_uncertainty",
     "coverage_factor": "coverage_factor", "dof": "dof", "note": "note",
-    "repeat_sd": "repeat_sd", "n_repeats": "n_repeats",
+    "repeat_sd": "repeat_sd", "n_repeats": "n_repeats", "measured_on": "measured_on",
 }  # fmt: skip
 
 
@@ -150,11 +150,15 @@ def _result_rows(audience: Audience) -> Iterator[dict[str, Any]]:
 
 
 def _result_columns(audience: Audience) -> list[str]:
-    """Every §1 column, ``repeat_sd`` and ``n_repeats`` only when a result has one (as a
-    results download leaves them out)."""
+    """Every §1 column, ``repeat_sd`` and ``n_repeats``, and ``measured_on``, only when a
+    result has one (as a results download leaves them out)."""
     found = Result.objects.filter(scores__run=audience.run)
     with_repeats = found.filter(Q(repeat_sd__isnull=False) | Q(n_repeats__isnull=False)).exists()
-    return [c for c in COLUMNS if with_repeats or c not in ("repeat_sd", "n_repeats")]
+    dated = found.filter(measured_on__isnull=False).exists()
+    left_out = (() if with_repeats else ("repeat_sd", "n_repeats")) + (
+        () if dated else ("measured_on",)
+    )
+    return [c for c in COLUMNS if c not in left_out]
 
 
 def _results_entry(audience: Audience, n_scores: int) -> Entry:

@@ -366,6 +366,7 @@ class _Import:
                     r.repeat_sd,
                     r.n_repeats,
                     r.expanded_uncertainty_entered,
+                    r.measured_on,
                 )
                 for r, p, i in zip(rows, parts, points, strict=True)
             ]

@@ -32,10 +32,14 @@ GRID_COLUMNS: dict[str, tuple[str, str, int]] = {
     "dof": ("Degrees of freedom", "dof", 20),
     "repeat_sd": ("Standard deviation of the repeats", "s", 40),
     "n_repeats": ("Number of repeats", "n", 20),
+    "measured_on": ("Date measured", "Date", 40),
     "note": ("Note", "Note", 500),
 }
+#: Asked only in a round with kits (their drift is taken at it, docs/domain.md §13).
+DATED_COLUMNS = ("measured_on",)
 #: A row with none of these filled in is left out (a partial draft is allowed).
-CONTENT_COLUMNS = ("sensitivity", "expanded_uncertainty", "dof", "repeat_sd", "n_repeats", "note")
+CONTENT_COLUMNS = ("sensitivity", "expanded_uncertainty", "dof", "repeat_sd", "n_repeats",
+                   "measured_on", "note")  # fmt: skip
 DEFAULT_K = "2"
 
 
@@ -67,23 +71,27 @@ class GridRow:
 
 class ResultGridForm(forms.Form):
     """One row per measurement point: sensitivity, U (absolute or ``1.5%``), k, dof, the
-    optional repeatability (repeat_sd with n_repeats), note."""
+    optional repeatability (repeat_sd with n_repeats), in a round with kits (``dated``) the
+    optional date measured, note."""
 
     def __init__(
         self,
         *args: Any,
         points: Sequence[MeasurementPoint],
         results: Mapping[int, Result] | None = None,
+        dated: bool = False,
         **kwargs: Any,
     ) -> None:
         super().__init__(*args, **kwargs)
         self.points = list(points)
+        self.dated = dated
+        self.columns = {c: v for c, v in GRID_COLUMNS.items() if dated or c not in DATED_COLUMNS}
         self.summary: list[str] = []
         self.submit_refused = False
         self._row_errors: dict[int, list[str]] = {}
         self._record_rows: list[int] = []
         for i, point in enumerate(self.points):
-            for name, (label, _, max_length) in GRID_COLUMNS.items():
+            for name, (label, _, max_length) in self.columns.items():
                 self.fields[self.key(i, name)] = forms.CharField(
                     label=f"{label}, {point}",
                     required=False,
@@ -112,6 +120,8 @@ class ResultGridForm(forms.Form):
             initial[self.key(i, "repeat_sd")] = _number(result.repeat_sd)
             initial[self.key(i, "n_repeats")] = _number(result.n_repeats)
             initial[self.key(i, "note")] = result.note
+            if self.dated and result.measured_on is not None:
+                initial[self.key(i, "measured_on")] = result.measured_on.isoformat()
         return initial
 
     def _is_blank(self, index: int) -> bool:
@@ -133,7 +143,7 @@ class ResultGridForm(forms.Form):
                 "quantity": point.quantity,
                 "amplitude_m_s2": point.amplitude_m_s2,
             }
-            for column in GRID_COLUMNS:
+            for column in self.columns:
                 value = (self.cleaned_data.get(self.key(i, column)) or "").strip()
                 record[column] = value or None
             records.append(record)
@@ -150,7 +160,7 @@ class ResultGridForm(forms.Form):
             index = self._grid_index(row)
             if index is None:
                 self.summary.append(text)
-            elif column in GRID_COLUMNS:
+            elif column in self.columns:
                 self.add_error(self.key(index, column), text)
             else:
                 self._row_errors.setdefault(index, []).append(text)
@@ -167,7 +177,7 @@ class ResultGridForm(forms.Form):
         for i, point in enumerate(self.points):
             cells = [
                 GridCell(column, title, self[self.key(i, column)])
-                for column, (_, title, _) in GRID_COLUMNS.items()
+                for column, (_, title, _) in self.columns.items()
             ]
             missing = self.submit_refused and self._is_blank(i)
             out.append(GridRow(i, point, cells, self._row_errors.get(i, []), missing))

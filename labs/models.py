@@ -214,6 +214,11 @@ class Result(models.Model):
         help_text="U as the laboratory wrote it when it gave it relative (\"1.2 %\"); blank when "
         "it gave the absolute number. expanded_uncertainty holds the absolute value either way",
     )  # fmt: skip
+    measured_on = models.DateField(
+        null=True, blank=True,
+        help_text="The date the laboratory states it measured the value; null: not stated "
+        "(a kit's drift is then taken over its holding of the kit, docs/domain.md §13)",
+    )  # fmt: skip
 
     class Meta:
         ordering = ["submission", "measurement_point"]

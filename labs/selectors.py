@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as dt
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -25,6 +26,7 @@ from django.db.models import (
     prefetch_related_objects,
 )
 from django.db.models.functions import Cast, Substr
+from django.utils import timezone
 
 from common import quantities
 from common.errors import NotVisible
@@ -33,7 +35,15 @@ from common.quantities import DEFAULT as DEFAULT_QUANTITY
 from common.quantities import point_unit
 from common.rows import JoinedQuery, ModelColumns
 from labs.importers import COLUMNS, PointKey, ResultRow, TableContext, write_table
-from labs.models import Enrolment, Laboratory, Notice, Participant, Result, Submission
+from labs.models import (
+    Enrolment,
+    KitSlot,
+    Laboratory,
+    Notice,
+    Participant,
+    Result,
+    Submission,
+)
 from proficiency.models import Comparison, MeasurementPoint
 
 
@@ -76,6 +86,7 @@ def comparison_result_rows(
             "note",
             "repeat_sd",
             "n_repeats",
+            "measured_on",
         )
     )
     return [
@@ -97,6 +108,7 @@ def comparison_result_rows(
             note=note,
             repeat_sd=repeat_sd,
             n_repeats=n_repeats,
+            measured_on=measured_on,
         )
         for i, (
             code,
@@ -115,6 +127,7 @@ def comparison_result_rows(
             note,
             repeat_sd,
             n_repeats,
+            measured_on,
         ) in enumerate(results, start=2)
     ]
 
@@ -354,29 +367,53 @@ def comparison_table(
 
     With ``participant``, the context carries its scope (rows outside it are refused, a
     complete table needs its points only); a participant whose scope leaves no point out
-    gets the whole comparison's context, with no further query."""
+    gets the whole comparison's context, with no further query.  The first day of the
+    kits' plan rides along on every row (an uncorrelated subquery: computed once)."""
+    planned = KitSlot.objects.filter(kit__comparison=comparison).order_by("starts_on")
     rows = (
         comparison.measurement_points.order_by(
             "device__name", "bench", "direction", "axis", "frequency_hz", "quantity", "pk"
         )
-        .annotate(in_scope=scope_flag(participant, default=True))
-        .values_list("pk", "device__unit", *POINT_LOOKUPS, "amplitude_m_s2", "in_scope")
+        .annotate(
+            in_scope=scope_flag(participant, default=True),
+            planned=Subquery(planned.values("starts_on")[:1]),
+        )
+        .values_list("pk", "device__unit", *POINT_LOOKUPS, "amplitude_m_s2", "in_scope", "planned")
     )
     keys: list[PointKey] = []
     scoped: list[PointKey] = []
     units: dict[str, str] = {}
     point_ids: dict[PointKey, int] = {}
-    for pk, unit, *fields, amplitude, inside in rows:
+    first_planned: dt.date | None = None
+    for pk, unit, *fields, amplitude, inside, planned_on in rows:
         key = PointKey.from_fields(fields, amplitude)
+        first_planned = planned_on
         keys.append(key)
         if inside:
             scoped.append(key)
         units[key.device] = unit
         point_ids[key] = pk
     context = TableContext.from_points(keys, device_units=units)
+    context = context.with_dates(*measurement_dates(comparison, first_planned))
     if participant is not None and len(scoped) < len(keys):
         context = context.with_scope(scoped, scope_text(participant))
     return ComparisonTable(context, point_ids)
+
+
+#: The time zone furthest ahead of UTC (Kiribati, UTC+14): its today is the latest date
+#: on which anyone can have measured.
+_AHEAD_OF_UTC = dt.timedelta(hours=14)
+
+
+def measurement_dates(comparison: Comparison, planned: dt.date | None) -> tuple[dt.date, dt.date]:
+    """The dates a result of ``comparison`` may state as measured on (docs/interfaces.md §1):
+    from the comparison's first day — the day it was created, or the first day of its
+    kits' circulation plan (``planned``) if that is earlier (a round entered once under
+    way) — to today anywhere on Earth."""
+    first = comparison.created_at.astimezone(dt.UTC).date()
+    if planned is not None:
+        first = min(first, planned)
+    return first, (timezone.now().astimezone(dt.UTC) + _AHEAD_OF_UTC).date()
 
 
 def table_context(comparison: Comparison) -> TableContext:
@@ -475,8 +512,16 @@ def results_template(
     )
     columns = TEMPLATE_COLUMNS
     if not has_other_kinds(comparison):  # a round of magnitudes: the template as before
-        columns = [c for c in TEMPLATE_COLUMNS if c != "quantity"]
+        columns = [c for c in columns if c != "quantity"]
+    if not has_kits(comparison):  # the date measured matters to a kit's drift only
+        columns = [c for c in columns if c != "measured_on"]
     return write_table(rows, format=format, columns=columns)  # type: ignore[arg-type]
+
+
+def has_kits(comparison: Comparison) -> bool:
+    """Whether the comparison circulates kits (docs/domain.md §15): its template and grid
+    then ask each result's ``measured_on`` (docs/interfaces.md §1)."""
+    return comparison.kits.exists()
 
 
 def has_other_kinds(comparison: Comparison) -> bool:

@@ -454,12 +454,15 @@ def _content_sha256(values: Sequence[tuple[object, ...]]) -> str:
     """SHA-256 of the results' values by measurement point (``repr`` of each value: floats
     exactly), whatever their order or source (grid, file, JSON).
 
-    The U as entered (the last value) counts only when the lab gave U in per cent: a
-    result with an absolute U hashes the tuple it hashed before that text was kept, so an
-    old submission sent again still answers its version (docs/lifecycles.md §2)."""
+    The U as entered (the last value but one) counts only when the lab gave U in per cent,
+    the date measured (the last) only when the lab stated one: a result without them
+    hashes the tuple it hashed before they were kept, so an old submission sent again
+    still answers its version (docs/lifecycles.md §2)."""
     digest = hashlib.sha256()
     for value in sorted(values, key=lambda v: v[0]):  # type: ignore[arg-type, return-value]
-        digest.update(repr(value if value[-1] else value[:-1]).encode())
+        *kept, entered, measured_on = value
+        hashed = (*kept, entered) if entered else tuple(kept)
+        digest.update(repr(hashed if measured_on is None else (*hashed, measured_on)).encode())
         digest.update(b"\n")
     return digest.hexdigest()
 
@@ -483,8 +486,8 @@ def _results(submission: Submission, values: list[tuple[object, ...]]) -> int:
 
 
 def _result_values(rows: list[ResultRow], table: ComparisonTable) -> list[tuple[object, ...]]:
-    """(point id, value, unit, U, k, dof, note, repeat_sd, n_repeats, U as entered) of each
-    row, on the one measurement point it fits."""
+    """(point id, value, unit, U, k, dof, note, repeat_sd, n_repeats, U as entered, date
+    measured) of each row, on the one measurement point it fits."""
     values: list[tuple[object, ...]] = []
     for row in rows:
         # The importer already refused a row fitting no point or several: never store a guess.
@@ -504,14 +507,14 @@ def _result_values(rows: list[ResultRow], table: ComparisonTable) -> list[tuple[
         values.append(
             (point_id, row.sensitivity, row.unit, row.expanded_uncertainty,
              row.coverage_factor, row.dof, row.note, row.repeat_sd, row.n_repeats,
-             row.expanded_uncertainty_entered)
+             row.expanded_uncertainty_entered, row.measured_on)
         )  # fmt: skip
     return values
 
 
 RESULT_COLUMNS = ("submission", "measurement_point", "value", "unit", "expanded_uncertainty",
                   "coverage_factor", "dof", "note", "repeat_sd", "n_repeats",
-                  "expanded_uncertainty_entered")  # fmt: skip
+                  "expanded_uncertainty_entered", "measured_on")  # fmt: skip
 
 
 def results_insert(values: Sequence[Sequence[Any]]) -> int:

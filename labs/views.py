@@ -61,6 +61,7 @@ from labs.raw_forms import RawUploadForm
 from labs.raw_selectors import raw_point_choices, raw_record_figure, raw_record_get, raw_records_of
 from labs.raw_services import human_limit, raw_declared_too_large, raw_upload_submit
 from labs.selectors import (
+    has_kits,
     participant_points,
     participant_submissions,
     scope_text,
@@ -208,7 +209,8 @@ def _grid_form(participant: Participant, data: QueryDict | None = None) -> Resul
     if source is not None:
         results = {r.measurement_point_id: r for r in source.results.all()}
     points = list(participant_points(participant))
-    return ResultGridForm(data, points=points, results=results)
+    dated = has_kits(participant.comparison)
+    return ResultGridForm(data, points=points, results=results, dated=dated)
 
 
 def _grid_save(
@@ -354,6 +356,7 @@ def submission_detail(request: AuthenticatedHttpRequest, code: str, version: int
         "submission": submission,
         "results": submission.results.select_related("measurement_point__device"),
         "is_draft": submission.status == Submission.Status.DRAFT,
+        "dated": submission.results.filter(measured_on__isnull=False).exists(),
     }
     return render(request, "labs/submission.html", context)
 

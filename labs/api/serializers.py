@@ -241,6 +241,12 @@ class ResultRowInSerializer(serializers.Serializer):
         required=False, allow_null=True, min_value=2,
         help_text="Number of repeats behind repeat_sd (whole number >= 2); give repeat_sd with it",
     )  # fmt: skip
+    measured_on = serializers.DateField(
+        required=False, allow_null=True,
+        help_text="The date the laboratory measured the result, YYYY-MM-DD (null or absent: "
+        "not stated); not before the comparison's first day nor in the future. A kit's "
+        "drift is taken at it (docs/domain.md §13)",
+    )  # fmt: skip
     note = serializers.CharField(required=False, max_length=500)
 
 
@@ -327,6 +333,7 @@ class ResultSerializer(serializers.ModelSerializer):
             "dof",
             "repeat_sd",
             "n_repeats",
+            "measured_on",
             "note",
         ]
 

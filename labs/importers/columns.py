@@ -34,6 +34,7 @@ from .validate import (
     _error_order,
     _frequency,
     _lab,
+    _measured_on,
     _n_repeats,
     _note,
     _quantity,
@@ -230,6 +231,7 @@ def field_checks(context: TableContext | None, lab_column: LabColumn) -> list[Fi
         ("lab", "text", lambda c: _lab(c, lab_column), None),
         ("note", "text", _note, None),
         ("n_repeats", "text", _n_repeats, None),
+        ("measured_on", "text", lambda c: _measured_on(c, context), None),
     ]
     for field, (required, allow_inf) in _NUMBERS.items():
         check = functools.partial(_number, field=field, required=required, allow_inf=allow_inf)
@@ -328,14 +330,15 @@ def _assemble(
     v: _Validator, values: Mapping[str, list[object]], context: TableContext | None
 ) -> list[ResultRow]:
     """A :class:`ResultRow` per good row, with the measurement-point check."""
-    fields = ("device", "axis", "frequency_hz", "bench", "direction", "quantity",
+    # measured_on first: it goes into the row as it was checked
+    fields = ("measured_on", "device", "axis", "frequency_hz", "bench", "direction", "quantity",
               "amplitude_m_s2", "sensitivity", "unit", "expanded_uncertainty", "coverage_factor",
               "dof", "lab", "note", "repeat_sd", "n_repeats")  # fmt: skip
     table = zip(v.numbers, v.bad, *(values[f] for f in fields), strict=True)
     check_points = context is not None and context.points is not None
     rows = []
     v.new_pass()
-    for number, bad, *cells in table:
+    for number, bad, on, *cells in table:
         if bad:
             continue
         device, axis, freq, bench, direction, q, amp, sens, unit, u, k, dof, lab, note, sd, n = (
@@ -360,7 +363,8 @@ def _assemble(
             v.note(number, magnitude_problems(sens, expanded, k, original_unit, q) + paired)
             continue
         row = _result_row(number, device, axis, freq, bench, direction, q, amp, sens, unit,
-                          expanded, k, dof, lab, note, original_unit, sd, n, entered)  # fmt: skip
+                          expanded, k, dof, lab, note, original_unit, sd, n, entered,
+                          on)  # fmt: skip
         if check_points and not _one_point_in_scope(context, row):  # type: ignore[arg-type]
             check = _RowCheck({}, number, v.decimal_comma)
             _check_point(check, row, context)

@@ -137,8 +137,9 @@ class _Codes:
 #: Text columns of the measurement point (and the unit, which goes with the device): a
 #: round repeats few combinations of them, so each row's combination is looked up once.
 _POINT_TEXT = ("device", "axis", "frequency_hz", "bench", "direction", "unit")
-#: Other columns checked once per distinct cell (``n_repeats``: a whole number, few values).
-_CODED = ("lab", "note", "n_repeats")
+#: Other columns checked once per distinct cell (``n_repeats``: a whole number, few values;
+#: ``measured_on``: a date, checked and not kept, ``pt_compare`` knows no kits).
+_CODED = ("lab", "note", "n_repeats", "measured_on")
 
 
 class _Plain:
@@ -154,7 +155,7 @@ class _Plain:
         self.names: list[str] = []
         self.point_names: list[str] = []
         self.points = _Codes()  # of the rows' point columns, as tuples
-        self.texts: dict[str, _Codes] = {}  # lab, note
+        self.texts: dict[str, _Codes] = {}  # lab, note, n_repeats, measured_on
         self.numbers: dict[str, list[np.ndarray]] = {}
         self.relative: list[np.ndarray] = []  # expanded_uncertainty given in %
         self.n_rows = 0
@@ -283,7 +284,8 @@ class _Plain:
         return out
 
     def _text(self, name: str) -> tuple[list[object], np.ndarray]:
-        """Lab, note or n_repeats: checked values per distinct cell and each row's code."""
+        """Lab, note, n_repeats or measured_on: checked values per distinct cell and each
+        row's code."""
         codes = self.texts.get(name)
         if codes is None:  # an absent column: one blank cell stands for every row
             return self._checked(name, [None]), np.zeros(self.n_rows, np.int64)
@@ -310,6 +312,7 @@ class _Plain:
         point, at = self._point_values(), self.points.all_codes()
         labs, lab_codes = self._text("lab")
         self._text("note")
+        self._text("measured_on")
         sensitivity = self._number("sensitivity")
         expanded = self._number("expanded_uncertainty")
         if "expanded_uncertainty" in self.numbers:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as dt
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -32,6 +33,7 @@ COLUMNS = (
     "dof",
     "repeat_sd",
     "n_repeats",
+    "measured_on",
     "note",
 )
 REQUIRED_COLUMNS = (
@@ -68,6 +70,8 @@ class ResultRow:
     deviation of the repeats behind ``sensitivity`` (their mean) and their number.
     ``expanded_uncertainty_entered`` is U as the lab wrote it when it gave it in per cent
     (``1.2%``), blank when it gave the absolute number (docs/domain.md §3.1).
+    ``measured_on`` is the date the lab states it measured the result, None when it does
+    not say (docs/interfaces.md §1; a kit's drift is taken at it, docs/domain.md §13).
     """
 
     row: int
@@ -89,6 +93,7 @@ class ResultRow:
     repeat_sd: float | None = None
     n_repeats: int | None = None
     expanded_uncertainty_entered: str = ""
+    measured_on: dt.date | None = None
 
     @property
     def standard_uncertainty(self) -> float:
@@ -135,6 +140,10 @@ class TableContext:
     (docs/domain.md §10), described for people by ``scope_text``: a row on a point
     outside it is refused, and a complete table needs only its points. ``None``
     means every point (build it with :meth:`with_scope`).
+
+    ``measured_from`` and ``measured_until``, when given, bound a stated ``measured_on``
+    (the comparison's first day, the latest date anywhere on Earth): build them with
+    :meth:`with_dates`.
     """
 
     device_units: Mapping[str, str] | None = None
@@ -149,6 +158,12 @@ class TableContext:
     frequency_rel_tol: float = 1e-9
     scope: frozenset[PointKey] | None = None
     scope_text: str = ""
+    measured_from: dt.date | None = None
+    measured_until: dt.date | None = None
+
+    def with_dates(self, first: dt.date | None, last: dt.date | None) -> TableContext:
+        """This context with a stated ``measured_on`` allowed from ``first`` to ``last``."""
+        return replace(self, measured_from=first, measured_until=last)
 
     def with_scope(self, points: Iterable[PointKey] | None, text: str = "") -> TableContext:
         """This context limited to ``points`` (``None``: every point), described by ``text``."""

@@ -155,13 +155,15 @@ def _cell(value: object) -> object:
         return str(value).upper()
     if isinstance(value, int | float):
         return value if math.isfinite(value) else format_number(float(value))
+    if isinstance(value, dt.date):
+        return value.isoformat()  # text in a workbook too: it reads back as written
     return escape_text(str(value))
 
 
 #: Columns a default download leaves out when no row has a value there (for ``quantity``:
-#: another kind than the magnitude): a table without labs, repeatability data or other
-#: kinds reads as it did before these columns existed.
-_OPTIONAL_OUT = ("lab", "quantity", "repeat_sd", "n_repeats")
+#: another kind than the magnitude): a table without labs, repeatability data, other
+#: kinds or stated dates reads as it did before these columns existed.
+_OPTIONAL_OUT = ("lab", "quantity", "repeat_sd", "n_repeats", "measured_on")
 _NO_VALUE = (None, "", DEFAULT_QUANTITY)
 
 
@@ -180,8 +182,10 @@ def write_table(
 ) -> bytes:
     """Write a results table (downloads, templates) that :func:`parse_table` reads back.
 
-    ``columns`` defaults to every column of docs/interfaces.md §1, ``lab``, ``repeat_sd`` and
-    ``n_repeats`` only when a row has one; mappings may carry other columns (scores).
+    ``columns`` defaults to every column of docs/interfaces.md §1, ``lab``, ``repeat_sd``,
+    ``n_repeats`` and ``measured_on`` only when a row has one (``quantity`` when a row is
+    of another kind); mappings may carry other columns (scores). A date is written
+    ``YYYY-MM-DD``.
     Numbers are written in full precision with a decimal point; text loses its control
     characters, then formula-like text gets a leading quote (:func:`~.values.escape_text`).
     CSV is UTF-8 with a BOM (for spreadsheets) unless ``bom=False``.

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import TypeVar
@@ -40,6 +41,7 @@ from .values import (
     magnitude_problem,
     mg_per_lsb_to_canonical,
     normalise_unit,
+    parse_date,
     parse_number,
 )
 
@@ -388,6 +390,33 @@ def _note(check: _RowCheck) -> str:
     return note
 
 
+def _measured_on(check: _RowCheck, context: TableContext | None = None) -> dt.date | None:
+    """The date the lab states it measured the result, or None (a blank cell, no column):
+    a calendar date, neither before the comparison's first day nor after today anywhere on
+    Earth where the context bounds it (docs/interfaces.md §1)."""
+    raw = check.raw("measured_on")
+    if is_blank(raw):
+        return None
+    try:
+        day = parse_date(raw)
+    except ValueProblem as problem:
+        check.fail("measured_on", str(problem))
+        return None
+    first = context.measured_from if context else None
+    last = context.measured_until if context else None
+    if last is not None and day > last:
+        check.fail(
+            "measured_on",
+            f"{day} is in the future: a measurement date is at the latest {last} (today "
+            "anywhere on Earth)",
+        )
+        return None
+    if first is not None and day < first:
+        check.fail("measured_on", f"{day} is before the comparison opened on {first}")
+        return None
+    return day
+
+
 def _number(
     check: _RowCheck, field: str, required: bool = False, allow_inf: bool = False
 ) -> float | None:
@@ -520,6 +549,7 @@ def validate_record(
     dof = run(_number, "dof", False, True)
     repeat_sd = run(_number, "repeat_sd")
     n_repeats = run(_n_repeats)
+    measured_on = run(_measured_on, context)
     lab = run(_lab, lab_column)
     note = run(_note)
     if check.errors:
@@ -547,6 +577,7 @@ def validate_record(
         coverage_factor=k,
         dof=dof, lab=lab, note=note, original_unit=original_unit,
         repeat_sd=sd, n_repeats=n_repeats, expanded_uncertainty_entered=entered,
+        measured_on=measured_on,
     )  # fmt: skip
     _check_point(check, result, context)
     return check.errors or result

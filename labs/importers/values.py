@@ -21,6 +21,8 @@ FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r", "\n", "\uff1d", "\uff0b", "\
 
 #: ASCII digits only: ``\d`` and ``float()`` would also take "٤٢٠" or "４２０" as 420.
 _NUMBER_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+#: The shape of a date as YYYY-MM-DD (whether that day exists is for the calendar to say).
+_DATE_RE = re.compile(r"\d{4}-\d{2}-\d{2}", re.ASCII)
 #: Characters no cell may hold: control characters other than tab, line feed and carriage
 #: return (PostgreSQL cannot store NUL, XML none of them), and lone UTF-16 surrogates
 #: (not encodable as UTF-8), which JSON can carry.
@@ -176,6 +178,27 @@ def _parse_number_text(text: str, decimal_comma: bool, allow_inf: bool) -> float
     if not _NUMBER_RE.fullmatch(text_for_float):
         raise ValueProblem(f"must be a number, got {text!r}")
     return _finite(float(text_for_float), repr(text), allow_inf)
+
+
+def parse_date(raw: object) -> dt.date:
+    """A calendar date from a text cell (ISO 8601 as ``datetime.date.fromisoformat`` reads
+    it: ``2025-03-14``, also ``20250314`` and ``2025-W11-5``, as the pilot's ``measured_on``
+    of a kit, docs/domain.md §15) or from an XLSX date cell (a date at midnight)."""
+    if isinstance(raw, dt.datetime):
+        if raw.time() != dt.time(0) or raw.tzinfo is not None:
+            shown = raw.isoformat(" ")
+            raise ValueProblem(f"must be a date YYYY-MM-DD without a time, got {shown}")
+        return raw.date()
+    if isinstance(raw, dt.date):
+        return raw
+    text = unescape_text(raw.strip()) if isinstance(raw, str) else display(raw)
+    try:
+        if not isinstance(raw, str) or not text.isascii():
+            raise ValueError(text)
+        return dt.date.fromisoformat(text)
+    except ValueError:
+        nonexistent = " (no such day)" if _DATE_RE.fullmatch(text) else ""
+        raise ValueProblem(f"must be a date YYYY-MM-DD, got {text!r}{nonexistent}") from None
 
 
 def _unit_key(text: str) -> str:

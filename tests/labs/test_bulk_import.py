@@ -263,7 +263,8 @@ def test_table_rules_give_the_upload_messages(round_):
          "the table has no data rows"),
         (b"", "the table is empty; the first row must be the header: lab, device, axis, "
               "frequency_hz, bench, direction, quantity, amplitude_m_s2, sensitivity, unit, "
-              "expanded_uncertainty, coverage_factor, dof, repeat_sd, n_repeats, note"),
+              "expanded_uncertainty, coverage_factor, dof, repeat_sd, n_repeats, measured_on, "
+              "note"),
         (b"lab,device,axis,frequency_hz,bench,sensitivity,expanded_uncertainty\n"
          b"L01,MEMS 1,X,5,linear,\xff,1\n",
          "row 2: the file is not UTF-8 text: byte 0xff at offset 90 (line 2); save it as "

@@ -118,9 +118,9 @@ def test_api_submission_stores_the_text_through_the_bulk_insert(participant, sta
 
 def test_checksum_of_an_absolute_u_is_the_one_stored_before_the_text_was_kept():
     """An old submission (absolute U) sent again still matches its stored checksum."""
-    values = [(7, 419.5, "mV/(m/s²)", 5.034, 2.0, None, "", None, None, "")]
+    values = [(7, 419.5, "mV/(m/s²)", 5.034, 2.0, None, "", None, None, "", None)]
     old = hashlib.sha256(repr((7, 419.5, "mV/(m/s²)", 5.034, 2.0, None, "", None, None)).encode())
     old.update(b"\n")
     assert services._content_sha256(values) == old.hexdigest()
-    relative = [(*values[0][:-1], "1.2 %")]
+    relative = [(*values[0][:-2], "1.2 %", None)]
     assert services._content_sha256(relative) != old.hexdigest()  # what was entered counts
