@@ -5,16 +5,14 @@ A chunk of a run calls :func:`kit_prepare` on the results it loaded: in a round 
 kits it returns them untouched (today's numbers, bit for bit).  Otherwise
 
 * each result is on the kit of its participant's first slot (earliest start) whose kit
-  holds the point's device, at the date of that turn: the midpoint of the kit's logged
-  arrival and departure when both are logged, else the midpoint of the planned slot
-  (a date stands for its noon, a slot runs from the noon of its first day to the noon of
-  its last);
+  holds the point's device, at the date its laboratory states, else at the midpoint of
+  its holding of the kit, with that date's own uncertainty u_t (:mod:`analysis.kit_dates`);
 * per kit and point the pilot's repeats (``KitMeasurement``, u = U/k for a change over
   time) are fitted by ``analysis.core.drift``; where the slope is significant every
   result on that kit is either corrected to the mean date t̄ of the pilot's repeats,
-  x − b·(t − t̄) with u² + (t − t̄)²·u²(b) — the same D as the reference corrected to the
-  participant's date — or keeps its value with u² + u_stab(t)², as the round's
-  ``drift_treatment`` says; elsewhere nothing changes;
+  x − b·(t − t̄) with u² + (t − t̄)²·u²(b) + b²·u_t² — the same D as the reference
+  corrected to the participant's date — or keeps its value with u² + u_stab(t)² +
+  b²·u_t², as the round's ``drift_treatment`` says; elsewhere nothing changes;
 * with two kits or more, each point is linked by ``analysis.core.linking`` (see
   :mod:`analysis.kit_link`).
 
@@ -33,12 +31,14 @@ import numpy as np
 
 from analysis.core.drift import DriftFit, drift_fit
 from analysis.core.groups import CoreInputError, Groups
+from analysis.kit_dates import Turn, date_of, day_of, outside
+from analysis.kit_dates import turns as kit_turns
 from analysis.kit_link import LinkInput, link_point
 from analysis.models import AnalysisRun, KitPointFit, KitScore
 from analysis.selectors import LoadedRound
 from common.errors import ValidationFailed
 from common.quantities import is_circular
-from labs.models import Handover, KitMeasurement, KitSlot
+from labs.models import KitMeasurement, Result
 from proficiency.models import Comparison, DriftTreatment, Kit, KitItem
 
 __all__ = ["KitOutputs", "kit_outputs_delete", "kit_outputs_store", "kit_prepare"]
@@ -53,30 +53,6 @@ class KitOutputs:
 
 
 @dataclass(frozen=True)
-class Turn:
-    """A participant's turn with a kit: the kit's index and the date (days, float)."""
-
-    kit: int
-    day: float
-    start: dt.date
-    position: int
-
-
-def _day(d: dt.date) -> float:
-    """A date as a day number: its noon (the convention of the whole module)."""
-    return d.toordinal() + 0.5
-
-
-def _instant(t: dt.datetime) -> float:
-    utc = t.astimezone(dt.UTC)
-    return utc.toordinal() + (utc.hour * 3600 + utc.minute * 60 + utc.second) / 86400.0
-
-
-def _date(day: float) -> dt.date:
-    return dt.date.fromordinal(int(np.floor(day)))
-
-
-@dataclass(frozen=True)
 class Round:
     """What the run needs to know about a round's kits."""
 
@@ -85,32 +61,6 @@ class Round:
     turns: dict[str, list[Turn]]  # participant code -> its turns, first first
     pilot: str | None
     treatment: str
-
-
-def _turns(comparison: Comparison, index: dict[int, int]) -> dict[str, list[Turn]]:
-    slots = list(KitSlot.objects.filter(kit__comparison=comparison)
-                 .values_list("pk", "kit_id", "participant__code", "starts_on", "ends_on",
-                              "position"))  # fmt: skip
-    arrival: dict[int, dt.datetime] = {}
-    departure: dict[int, dt.datetime] = {}
-    moves = Handover.objects.filter(kit__comparison=comparison).values_list(
-        "to_slot_id", "received_at", "from_slot_id", "dispatched_at"
-    )
-    for to_slot, received, from_slot, dispatched in moves:
-        if to_slot and received:
-            arrival[to_slot] = received
-        if from_slot:
-            departure[from_slot] = dispatched
-    turns: dict[str, list[Turn]] = defaultdict(list)
-    for pk, kit_id, code, start, end, position in slots:
-        if pk in arrival and pk in departure and departure[pk] >= arrival[pk]:
-            day = (_instant(arrival[pk]) + _instant(departure[pk])) / 2
-        else:
-            day = (_day(start) + _day(end)) / 2
-        turns[code].append(Turn(index[kit_id], day, start, position))
-    for found in turns.values():
-        found.sort(key=lambda t: (t.start, t.kit, t.position))
-    return dict(turns)
 
 
 def _pilot(comparison: Comparison, turns: dict[str, list[Turn]], n_kits: int) -> str | None:
@@ -133,7 +83,7 @@ def _round(run: AnalysisRun) -> Round | None:
     index = {k.pk: i for i, k in enumerate(kits)}
     holds = {(index[k], d) for k, d in
              KitItem.objects.filter(kit__in=kits).values_list("kit_id", "device_id")}  # fmt: skip
-    turns = _turns(comparison, index)
+    turns = kit_turns(comparison, index)
     treatment = run.parameters.get("drift_treatment") or comparison.drift_treatment
     return Round(kits, holds, turns, _pilot(comparison, turns, len(kits)), treatment)
 
@@ -146,9 +96,10 @@ class Drift:
     series: dict[tuple[int, int], int]
     one_date: list[tuple[int, int]]
 
-    def shift(self, kit: np.ndarray, group: np.ndarray, day: np.ndarray,
-              treatment: str) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """Per observation: the value added and the standard uncertainty added."""
+    def shift(self, kit: np.ndarray, group: np.ndarray, day: np.ndarray, treatment: str,
+              u_day: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+        """Per observation: the value added and the standard uncertainty added, the date's
+        own uncertainty ``u_day`` (none: 0) included as b·u_t in either treatment."""
         shift, u_add = np.zeros(day.size), np.zeros(day.size)
         if self.fit is None:
             return shift, u_add
@@ -156,12 +107,13 @@ class Drift:
                       zip(kit.tolist(), group.tolist(), strict=True)], dtype=np.intp)  # fmt: skip
         f, on = self.fit, s >= 0
         on[on] = f.linear[s[on]]
-        dt_ = day[on] - f.t_mean[s[on]]
+        dt_, b = day[on] - f.t_mean[s[on]], f.slope[s[on]]
+        b_u_t = b * (0.0 if u_day is None else u_day[on])  # hypot(x, 0) is |x| exactly
         if treatment == DriftTreatment.U_STAB:
-            u_add[on] = f.u_stab(s[on], day[on])
+            u_add[on] = np.hypot(f.u_stab(s[on], day[on]), b_u_t)
         else:
-            shift[on] = -f.slope[s[on]] * dt_
-            u_add[on] = np.abs(dt_) * f.u_slope[s[on]]
+            shift[on] = -b * dt_
+            u_add[on] = np.hypot(dt_ * f.u_slope[s[on]], b_u_t)
         return shift, u_add
 
 
@@ -189,7 +141,7 @@ def _repeats(rnd: Round, loaded: LoadedRound) -> Repeats:
     return Repeats(
         kit=np.array([index[k] for k in cols[0]], dtype=np.intp),
         group=np.array([group_of[p] for p in cols[1]], dtype=np.intp),
-        day=np.array([_day(d) for d in cols[2]], dtype=np.float64),
+        day=np.array([day_of(d) for d in cols[2]], dtype=np.float64),
         value=np.array(cols[3], dtype=np.float64),
         u=np.array(cols[4], dtype=np.float64) / np.array(cols[5], dtype=np.float64),
     )
@@ -215,18 +167,58 @@ def _drift(rep: Repeats) -> Drift:
     return Drift(fit, series, one)
 
 
-def _result_turns(rnd: Round, loaded: LoadedRound) -> tuple[np.ndarray, np.ndarray, list[bool]]:
-    """Per result: its kit index (−1: none holds the device for it), its day (NaN), and
-    whether its participant holds turns on two kits or more holding the device."""
+@dataclass(frozen=True)
+class Dated:
+    """Per result: its kit index (−1: none holds the device for it), its day (NaN) and
+    that day's standard uncertainty u_t, whether its participant holds turns on two kits
+    or more holding the device, and the note on a stated date outside its holding."""
+
+    kit: np.ndarray
+    day: np.ndarray
+    u_day: np.ndarray
+    several: list[bool]
+    strays: list[str]
+
+
+def _stated(loaded: LoadedRound) -> dict[int, dt.date]:
+    """The dates the chunk's results state as measured on, by result id."""
+    rows = Result.objects.filter(
+        submission_id__in=loaded.submission_ids.tolist(),
+        measurement_point_id__in=loaded.point_ids.tolist(), measured_on__isnull=False,
+    ).values_list("pk", "measured_on")  # fmt: skip
+    return {pk: on for pk, on in rows if on is not None}
+
+
+def _result_turns(rnd: Round, loaded: LoadedRound) -> Dated:
+    """Each result's kit and date: the date its laboratory states (u_t = 0), else its
+    turn's (docs/domain.md §13, ``analysis.kit_dates``)."""
+    stated = _stated(loaded)
     device = np.array([p.device_id for p in loaded.points])[loaded.groups.index]
-    kit, day, several = np.full(device.size, -1), np.full(device.size, np.nan), []
-    for i, (code, dev) in enumerate(zip(loaded.table.lab.tolist(), device.tolist(),
-                                        strict=True)):  # fmt: skip
+    n = device.size
+    out = Dated(np.full(n, -1), np.full(n, np.nan), np.zeros(n), [], [])
+    for i, (code, dev, rid) in enumerate(zip(loaded.table.lab.tolist(), device.tolist(),
+                                             loaded.result_id.tolist(), strict=True)):  # fmt: skip
         turns = [t for t in rnd.turns.get(code, []) if (t.kit, dev) in rnd.holds]
-        if turns:
-            kit[i], day[i] = turns[0].kit, turns[0].day
-        several.append(len({t.kit for t in turns}) > 1)
-    return kit, day, several
+        out.several.append(len({t.kit for t in turns}) > 1)
+        out.strays.append("")
+        if not turns:
+            continue
+        first, on = turns[0], stated.get(rid)
+        out.kit[i] = first.kit
+        if on is None:
+            out.day[i], out.u_day[i] = first.day, first.u_day
+            continue
+        out.day[i] = day_of(on)
+        held = [t.held for t in turns if t.kit == first.kit]
+        if outside(on, held):
+            out.strays[i] = _stray(code, on, rnd.kits[first.kit].name, held)
+    return out
+
+
+def _stray(code: str, on: dt.date, kit: str, held: list[tuple[float, float]]) -> str:
+    spans = " and ".join(f"{date_of(a)} to {date_of(b)}" for a, b in held)
+    return (f"{code} states it measured on {on}, outside its holding of {kit} ({spans}): "
+            "the stated date is used")  # fmt: skip
 
 
 def kit_prepare(run: AnalysisRun, loaded: LoadedRound) -> tuple[LoadedRound, KitOutputs | None]:
@@ -244,8 +236,9 @@ def kit_prepare(run: AnalysisRun, loaded: LoadedRound) -> tuple[LoadedRound, Kit
 def _prepare(run: AnalysisRun, rnd: Round, loaded: LoadedRound) -> tuple[LoadedRound, KitOutputs]:
     rep = _repeats(rnd, loaded)
     drift = _drift(rep)
-    kit, day, several = _result_turns(rnd, loaded)
-    shift, u_add = drift.shift(kit, loaded.groups.index, day, rnd.treatment)
+    dated = _result_turns(rnd, loaded)
+    kit, day, several = dated.kit, dated.day, dated.several
+    shift, u_add = drift.shift(kit, loaded.groups.index, day, rnd.treatment, dated.u_day)
     adjusted = _adjusted(loaded, shift, u_add)
     r_shift, r_u = drift.shift(rep.kit, rep.group, rep.day, rnd.treatment)
     pilot_obs = dataclasses.replace(rep, value=rep.value + r_shift, u=np.hypot(rep.u, r_u))
@@ -258,6 +251,7 @@ def _prepare(run: AnalysisRun, rnd: Round, loaded: LoadedRound) -> tuple[LoadedR
     for g, point in enumerate(loaded.points):
         rows = order[(ends[g - 1] if g else 0) : ends[g]]
         notes = _notes(rnd, drift, g, codes[rows], kit[rows], [several[i] for i in rows])
+        notes += [dated.strays[i] for i in rows.tolist() if dated.strays[i]]
         fit = KitPointFit(run=run, measurement_point=point, drift=_drift_rows(rnd, drift, g),
                           notes=notes)  # fmt: skip
         linked = None
@@ -284,7 +278,7 @@ def _prepare(run: AnalysisRun, rnd: Round, loaded: LoadedRound) -> tuple[LoadedR
             outputs.scores.append(KitScore(
                 run=run, result_id=int(loaded.result_id[i]),
                 kit=rnd.kits[kit[i]] if kit[i] >= 0 else None,
-                measured_on=_date(day[i]) if kit[i] >= 0 else None,
+                measured_on=date_of(day[i]) if kit[i] >= 0 else None,
                 drift_correction=float(shift[i]), u_drift=float(u_add[i]),
                 linked_d=linked.d[j] if linked else None,
                 linked_u=linked.u_d[j] if linked else None,
@@ -326,7 +320,7 @@ def _drift_rows(rnd: Round, drift: Drift, g: int) -> list[dict]:
         out.append({
             "kit": rnd.kits[k].name, "n": int(f.n[s]), "model": f.model[s],
             "slope": float(f.slope[s]), "u_slope": float(f.u_slope[s]),
-            "p_value": p if np.isfinite(p) else None, "t_mean": _date(f.t_mean[s]).isoformat(),
+            "p_value": p if np.isfinite(p) else None, "t_mean": date_of(f.t_mean[s]).isoformat(),
             "value": float(f.value[s]), "u_value": float(f.u_value[s]),
         })  # fmt: skip
     return out

@@ -601,12 +601,17 @@ class KitScore(models.Model):
         "proficiency.Kit", null=True, blank=True, on_delete=models.SET_NULL,
         related_name="kit_scores",
     )  # fmt: skip
-    measured_on = models.DateField(null=True, blank=True, help_text="midpoint of its turn")
+    measured_on = models.DateField(
+        null=True, blank=True,
+        help_text="the date its drift was taken at: the stated date, else the midpoint of its "
+        "holding of the kit (docs/domain.md §13)",
+    )  # fmt: skip
     drift_correction = models.FloatField(
         default=0.0, help_text="added to the result: −b·(t − t̄) where corrected, else 0"
     )
     u_drift = models.FloatField(
-        default=0.0, help_text="standard uncertainty added: |t − t̄|·u(b) or u_stab(t)"
+        default=0.0,
+        help_text="standard uncertainty added: |t − t̄|·u(b) or u_stab(t), with b·u_t in quadrature",
     )
     linked_d = models.FloatField(null=True, blank=True)
     linked_u = models.FloatField(null=True, blank=True, help_text="u(d)")

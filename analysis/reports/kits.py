@@ -11,12 +11,16 @@ from analysis.models import AnalysisRun
 from analysis.reports.data import KitDrift, KitLink, KitSection
 from common.sizes import counted
 
+_DATE = (
+    "; t is the date the laboratory stated, else the middle of its holding of the kit, whose "
+    "own uncertainty u_t (the holding's length over √12) adds b·u_t"
+)
 _TREATMENT = {
     "correct": "each result on a drifting kit was corrected to the mean date t̄ of the "
     "pilot's repeats, x − b·(t − t̄), with |t − t̄|·u(b) added to its uncertainty (the "
-    "reference corrected to the participant's date)",
+    "reference corrected to the participant's date)" + _DATE,
     "u_stab": "a drifting kit kept its constant value and each result on it had u_stab(t) = "
-    "|b·(t − t̄)|/√3 added to its uncertainty",
+    "|b·(t − t̄)|/√3 added to its uncertainty" + _DATE,
 }
 
 

@@ -82,6 +82,12 @@ def day_of(slot_start: dt.date, slot_end: dt.date) -> float:
     return (slot_start.toordinal() + slot_end.toordinal()) / 2 + 0.5
 
 
+def u_day_of(slot_start: dt.date, slot_end: dt.date) -> float:
+    """That date's standard uncertainty: uniform from the first noon to the last, the
+    width over √12 (docs/domain.md §13)."""
+    return (slot_end - slot_start).days / np.sqrt(12.0)
+
+
 def pilot_series(kit: Kit, point: MeasurementPoint) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rows = KitMeasurement.objects.filter(kit=kit, measurement_point=point).order_by("measured_on")
     t = np.array([m.measured_on.toordinal() + 0.5 for m in rows])

@@ -13,7 +13,15 @@ import pytest
 from analysis.models import AnalysisChunk, AnalysisRun, KitPointFit, KitScore, Score
 from analysis.services import analysis_chunk_execute
 from labs.models import KitSlot, Result
-from tests.analysis.kit_rounds import START, add_kit, day_of, make_round, pilot_series, started
+from tests.analysis.kit_rounds import (
+    START,
+    add_kit,
+    day_of,
+    make_round,
+    pilot_series,
+    started,
+    u_day_of,
+)
 
 pytestmark = pytest.mark.django_db
 
@@ -39,6 +47,13 @@ def turn_day(code: str, kit) -> float:
     slot = KitSlot.objects.filter(kit=kit, participant__code=code).order_by("position").first()
     assert slot is not None
     return day_of(slot.starts_on, slot.ends_on)
+
+
+def turn_u(code: str, kit) -> float:
+    """u_t of that date: the slot's width over √12 (no hand-over logged, no date stated)."""
+    slot = KitSlot.objects.filter(kit=kit, participant__code=code).order_by("position").first()
+    assert slot is not None
+    return u_day_of(slot.starts_on, slot.ends_on)
 
 
 def test_a_round_without_kits_scores_as_today_by_hand(run_of):
@@ -96,9 +111,11 @@ def test_a_drifting_kit_is_corrected_as_polyfit_says(run_of):
             dt_ = turn_day(code, kit) - t_mean
             ks = KitScore.objects.get(run=run, result=x)
             assert ks.drift_correction == pytest.approx(-b * dt_, rel=1e-12)
-            assert ks.u_drift == pytest.approx(abs(dt_) * u_b, rel=1e-12)
+            # u_drift² = (t − t̄)²·u²(b) + b²·u_t² (docs/domain.md §13)
+            u_drift = np.sqrt((dt_ * u_b) ** 2 + (b * turn_u(code, kit)) ** 2)
+            assert ks.u_drift == pytest.approx(u_drift, rel=1e-12)
             assert ks.kit_id == kit.pk and ks.linked_d is None
-            moved[code] = (x.value - b * dt_, np.hypot(x.expanded_uncertainty / 2, dt_ * u_b))
+            moved[code] = (x.value - b * dt_, np.hypot(x.expanded_uncertainty / 2, u_drift))
         for code, x in res.items():
             s = Score.objects.get(run=run, result=x)
             # the reference corrected to the participant's date: D = x − x_ref − b(t − t_ref)
@@ -123,7 +140,9 @@ def test_a_drifting_kit_kept_constant_adds_u_stab_and_keeps_d(run_of):
         dt_ = turn_day(code, kit) - t_mean
         ks = KitScore.objects.get(run=run, result=x)
         assert ks.drift_correction == 0.0
-        assert ks.u_drift == pytest.approx(abs(b * dt_) / np.sqrt(3), rel=1e-12)
+        # u_stab(t)² + b²·u_t² (docs/domain.md §13)
+        u_stab = abs(b * dt_) / np.sqrt(3)
+        assert ks.u_drift == pytest.approx(np.hypot(u_stab, b * turn_u(code, kit)), rel=1e-12)
         assert Score.objects.get(run=run, result=x).d == x.value - res["L0"].value
 
 
@@ -135,16 +154,17 @@ def _dense_two_kits(r, kits, point, b_u_t):
     codes = [f"L{i}" for i in range(1, 7)]
     y, u, rows = [], [], []
 
-    def corrected(kit_i, t, value, u0):
+    def corrected(kit_i, t, value, u0, u_t=0.0):
         b, u_b, t_mean = b_u_t[kit_i]
         if b is None:
             return value, u0
-        return value - b * (t - t_mean), np.hypot(u0, (t - t_mean) * u_b)
+        return value - b * (t - t_mean), np.sqrt(u0**2 + ((t - t_mean) * u_b) ** 2 + (b * u_t) ** 2)
 
     for code in ["L0", *codes]:
         x = res[code]
         kit_i = 0 if code in ("L0", "L1", "L2", "L3") else 1
-        v, s = corrected(kit_i, turn_day(code, kits[kit_i]), x.value, x.expanded_uncertainty / 2)
+        v, s = corrected(kit_i, turn_day(code, kits[kit_i]), x.value, x.expanded_uncertainty / 2,
+                         turn_u(code, kits[kit_i]))  # fmt: skip
         col = None if code == "L0" else 2 + codes.index(code)
         y.append(v)
         u.append(s)
@@ -245,7 +265,8 @@ def test_a_chunk_stored_again_replaces_its_kit_rows(run_of):
 
 
 def test_hand_overs_logged_date_the_turn(run_of):
-    """The kit arrived late: the turn is dated by its logged arrival and departure."""
+    """The kit arrived late and left late: the turn is dated from its logged arrival to
+    the slot's end (a late dispatch does not stretch it, docs/domain.md §13)."""
     from labs.kits import handover_dispatch, handover_receive
 
     r = make_round()
@@ -268,11 +289,14 @@ def test_hand_overs_logged_date_the_turn(run_of):
     )
     run = run_of(r["comparison"])
     point = r["points"][0]
-    b, _, t_mean = _polyfit(kit, point)
-    held = (late.date().toordinal() + slots[1].ends_on.toordinal() + 2) / 2 + 0.5
+    b, u_b, t_mean = _polyfit(kit, point)
+    held = (late.date().toordinal() + slots[1].ends_on.toordinal()) / 2 + 0.5
+    width = slots[1].ends_on.toordinal() - late.date().toordinal()  # noon to noon
     ks = KitScore.objects.get(run=run, result__measurement_point=point,
                               result__submission__participant__code="L1")  # fmt: skip
     assert ks.drift_correction == pytest.approx(-b * (held - t_mean), rel=1e-12)
+    u_t = width / np.sqrt(12)
+    assert ks.u_drift == pytest.approx(np.hypot((held - t_mean) * u_b, b * u_t), rel=1e-12)
 
 
 def test_the_demo_run_links_both_loops_and_corrects_kit_b(run_of, demo_kit_drift):
