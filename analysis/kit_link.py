@@ -2,13 +2,16 @@
 (docs/domain.md §14, ``analysis.core.linking``), from the results of a run's chunk.
 
 Observations: every participant's result on its kit (drift handled as the round says),
-and the pilot's repeat measurements of every kit.  The repeats enter as a *transfer
-series* with an offset of its own, left out of any weighted mean: they carry the pilot's
-reproducibility (the u of a change over time), so they fix how the kits differ, never the
-level; the level comes from the pilot's result with its full uncertainty (pilot
-reference) or from the laboratories' weighted mean.  With one kit the transfer offset
-takes up the repeats entirely and the pilot reference gives today's reference-laboratory
-numbers.
+the linking laboratories' measurements of the kits of their other loops, and the pilot's
+repeat measurements of every kit.  A linking laboratory's measurement carries that
+laboratory's own bias (the same unknown as its result), so the laboratory ties its two
+kits together; one of a laboratory without a result on a kit at the point, or of the kit
+its result is on, is noted and ignored.  The repeats enter as a *transfer series* with an
+offset of its own, left out of any weighted mean: they carry the pilot's reproducibility
+(the u of a change over time), so they fix how the kits differ, never the level; the level
+comes from the pilot's result with its full uncertainty (pilot reference) or from the
+laboratories' weighted mean.  With one kit the transfer offset takes up the repeats
+entirely and the pilot reference gives today's reference-laboratory numbers.
 
 The reference follows the round's assigned-value method at the point: ``reference`` and
 ``nominal`` → the pilot (b_pilot = 0; a nominal value is no laboratory, and the pilot is
@@ -31,8 +34,20 @@ _PILOT_METHODS = {AssignedValueMethod.REFERENCE, AssignedValueMethod.NOMINAL}
 
 
 @dataclass(frozen=True)
+class Measurements:
+    """Measurements of kits at one point: kit index, value, u (the pilot's repeats), and
+    for a linking laboratory's its code."""
+
+    kit: np.ndarray
+    value: np.ndarray
+    u: np.ndarray
+    codes: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
 class LinkInput:
-    """One point: the results (codes, kit index or −1, value, u) and the pilot's repeats."""
+    """One point: the results (codes, kit index or −1, value, u), the pilot's repeats and
+    the linking laboratories' measurements."""
 
     method: str
     pilot: str | None
@@ -40,9 +55,8 @@ class LinkInput:
     kit: np.ndarray
     value: np.ndarray
     u: np.ndarray
-    pilot_kit: np.ndarray
-    pilot_value: np.ndarray
-    pilot_u: np.ndarray
+    repeats: Measurements
+    linking: Measurements
     kit_names: list[str]
 
 
@@ -86,12 +100,11 @@ def link_point(x: LinkInput) -> PointLink:
         return out
     rows = np.flatnonzero(on_kit)
     n_labs = rows.size  # laboratory j is result rows[j]; the transfer series is n_labs
-    obs_kit = np.concatenate([x.kit[rows], x.pilot_kit]).astype(np.intp)
-    obs_lab = np.concatenate([np.arange(n_labs), np.full(x.pilot_kit.size, n_labs)]).astype(np.intp)
-    comp = lab_components(obs_kit, obs_lab)
+    obs = _observations(x, rows, out.notes)
+    comp = lab_components(obs.kit, obs.lab)
     if reference == PILOT:
         anchor = comp[int(np.flatnonzero(x.codes[rows] == x.pilot)[0])]
-    elif x.pilot_kit.size:
+    elif x.repeats.kit.size:
         anchor = comp[n_labs]
     else:  # the part holding the most laboratories, the first of equals
         labels, counts = np.unique(comp[:n_labs], return_counts=True)
@@ -102,19 +115,53 @@ def link_point(x: LinkInput) -> PointLink:
     if apart.size:
         out.notes.append("not linked to the reference by any kit: "
                          + ", ".join(sorted(x.codes[apart].tolist())))  # fmt: skip
-    return _solve(x, out, reference, rows, obs_kit, obs_lab, keep_lab)
+    return _solve(x, out, reference, rows, obs, keep_lab)
+
+
+@dataclass(frozen=True)
+class _Observations:
+    """The rows of the model: laboratory index (the transfer series last), kit, y, u."""
+
+    lab: np.ndarray
+    kit: np.ndarray
+    value: np.ndarray
+    u: np.ndarray
+
+
+def _observations(x: LinkInput, rows: np.ndarray, notes: list[str]) -> _Observations:
+    """The results on a kit (laboratory j is result ``rows[j]``), the linking laboratories'
+    measurements with their laboratory's index, the pilot's repeats as laboratory
+    ``rows.size``; what is ignored is said in ``notes``."""
+    n_labs, link = rows.size, x.linking
+    lab_of = {c: j for j, c in enumerate(x.codes[rows].tolist())}
+    codes = link.codes.tolist() if link.codes is not None else []
+    lab = np.array([lab_of.get(c, -1) for c in codes], dtype=np.intp)
+    own = np.zeros(lab.size, dtype=bool)
+    own[lab >= 0] = x.kit[rows[lab[lab >= 0]]] == link.kit[lab >= 0]
+    ignored = [f"{c}'s measurement of {x.kit_names[k]} is ignored: "
+               + ("it has no result on a kit here" if j < 0 else "its result is on that kit")
+               for c, k, j, mine in zip(codes, link.kit.tolist(), lab.tolist(), own.tolist(),
+                                        strict=True) if j < 0 or mine]  # fmt: skip
+    notes.extend(dict.fromkeys(ignored))  # one note per laboratory and kit, not per date
+    take = (lab >= 0) & ~own
+    return _Observations(
+        lab=np.concatenate([np.arange(n_labs), lab[take],
+                            np.full(x.repeats.kit.size, n_labs)]).astype(np.intp),
+        kit=np.concatenate([x.kit[rows], link.kit[take], x.repeats.kit]).astype(np.intp),
+        value=np.concatenate([x.value[rows], link.value[take], x.repeats.value]),
+        u=np.concatenate([x.u[rows], link.u[take], x.repeats.u]),
+    )  # fmt: skip
 
 
 def _solve(
-    x: LinkInput, out: PointLink, reference: str, rows: np.ndarray, obs_kit: np.ndarray,
-    obs_lab: np.ndarray, keep_lab: np.ndarray,
+    x: LinkInput, out: PointLink, reference: str, rows: np.ndarray, obs: _Observations,
+    keep_lab: np.ndarray,
 ) -> PointLink:  # fmt: skip
     n_labs = rows.size
-    keep = keep_lab[obs_lab]
-    y = np.concatenate([x.value[rows], x.pilot_value])[keep]
-    u = np.concatenate([x.u[rows], x.pilot_u])[keep]
-    kits, kit_idx = np.unique(obs_kit[keep], return_inverse=True)
-    labs, lab_idx = np.unique(obs_lab[keep], return_inverse=True)
+    keep = keep_lab[obs.lab]
+    y, u = obs.value[keep], obs.u[keep]
+    kits, kit_idx = np.unique(obs.kit[keep], return_inverse=True)
+    labs, lab_idx = np.unique(obs.lab[keep], return_inverse=True)
     in_mean = labs < n_labs
     pilot = 0
     if reference == PILOT:

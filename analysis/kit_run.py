@@ -7,14 +7,17 @@ kits it returns them untouched (today's numbers, bit for bit).  Otherwise
 * each result is on the kit of its participant's first slot (earliest start) whose kit
   holds the point's device, at the date its laboratory states, else at the midpoint of
   its holding of the kit, with that date's own uncertainty u_t (:mod:`analysis.kit_dates`);
-* per kit and point the pilot's repeats (``KitMeasurement``, u = U/k for a change over
-  time) are fitted by ``analysis.core.drift``; where the slope is significant every
-  result on that kit is either corrected to the mean date t̄ of the pilot's repeats,
-  x − b·(t − t̄) with u² + (t − t̄)²·u²(b) + b²·u_t² — the same D as the reference
-  corrected to the participant's date — or keeps its value with u² + u_stab(t)² +
-  b²·u_t², as the round's ``drift_treatment`` says; elsewhere nothing changes;
+* per kit and point the pilot's repeats (``KitMeasurement`` without a participant, u =
+  U/k for a change over time) are fitted by ``analysis.core.drift``; where the slope is
+  significant every result on that kit is either corrected to the mean date t̄ of the
+  pilot's repeats, x − b·(t − t̄) with u² + (t − t̄)²·u²(b) + b²·u_t² — the same D as the
+  reference corrected to the participant's date — or keeps its value with u² +
+  u_stab(t)² + b²·u_t², as the round's ``drift_treatment`` says (a linking laboratory's
+  measurement of a kit the same, at its stated date: u_t = 0); elsewhere nothing changes;
 * with two kits or more, each point is linked by ``analysis.core.linking`` (see
-  :mod:`analysis.kit_link`).
+  :mod:`analysis.kit_link`);
+* a phase point is drift-fitted and linked on its observations unwrapped about their
+  circular mean, and wrapped back (:mod:`analysis.kit_phase`).
 
 The rows to store (:class:`KitOutputs`) are written by the chunk in its own transaction
 (:func:`kit_outputs_store`), after deleting any of its points' rows: a retry replaces.
@@ -24,22 +27,21 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
-from collections import defaultdict
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from analysis.core.drift import DriftFit, drift_fit
-from analysis.core.groups import CoreInputError, Groups
+from analysis.core.phase import wrap
 from analysis.kit_dates import Turn, date_of, day_of, outside
 from analysis.kit_dates import turns as kit_turns
-from analysis.kit_link import LinkInput, link_point
+from analysis.kit_drift import Drift, Repeats, drift_of
+from analysis.kit_link import LinkInput, PointLink, link_point
+from analysis.kit_phase import OnLine, on_line, wrap_link
 from analysis.models import AnalysisRun, KitPointFit, KitScore
 from analysis.selectors import LoadedRound
-from common.errors import ValidationFailed
 from common.quantities import is_circular
 from labs.models import KitMeasurement, Result
-from proficiency.models import Comparison, DriftTreatment, Kit, KitItem
+from proficiency.models import Comparison, Kit, KitItem, MeasurementPoint
 
 __all__ = ["KitOutputs", "kit_outputs_delete", "kit_outputs_store", "kit_prepare"]
 
@@ -88,83 +90,24 @@ def _round(run: AnalysisRun) -> Round | None:
     return Round(kits, holds, turns, _pilot(comparison, turns, len(kits)), treatment)
 
 
-@dataclass(frozen=True)
-class Drift:
-    """The drift fits of the chunk's series, keyed by (kit index, point group)."""
-
-    fit: DriftFit | None
-    series: dict[tuple[int, int], int]
-    one_date: list[tuple[int, int]]
-
-    def shift(self, kit: np.ndarray, group: np.ndarray, day: np.ndarray, treatment: str,
-              u_day: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """Per observation: the value added and the standard uncertainty added, the date's
-        own uncertainty ``u_day`` (none: 0) included as b·u_t in either treatment."""
-        shift, u_add = np.zeros(day.size), np.zeros(day.size)
-        if self.fit is None:
-            return shift, u_add
-        s = np.array([self.series.get((int(k), int(g)), -1) for k, g in
-                      zip(kit.tolist(), group.tolist(), strict=True)], dtype=np.intp)  # fmt: skip
-        f, on = self.fit, s >= 0
-        on[on] = f.linear[s[on]]
-        dt_, b = day[on] - f.t_mean[s[on]], f.slope[s[on]]
-        b_u_t = b * (0.0 if u_day is None else u_day[on])  # hypot(x, 0) is |x| exactly
-        if treatment == DriftTreatment.U_STAB:
-            u_add[on] = np.hypot(f.u_stab(s[on], day[on]), b_u_t)
-        else:
-            shift[on] = -b * dt_
-            u_add[on] = np.hypot(dt_ * f.u_slope[s[on]], b_u_t)
-        return shift, u_add
-
-
-@dataclass(frozen=True)
-class Repeats:
-    """The pilot's repeats at the chunk's points: kit index, group, day, value, u."""
-
-    kit: np.ndarray
-    group: np.ndarray
-    day: np.ndarray
-    value: np.ndarray
-    u: np.ndarray
-
-
 def _repeats(rnd: Round, loaded: LoadedRound) -> Repeats:
     index = {k.pk: i for i, k in enumerate(rnd.kits)}
-    # a phase lives on a circle: its drift and its link are not fitted on a line (below)
-    group_of = {int(p.pk): g for g, p in enumerate(loaded.points) if not is_circular(p.quantity)}
+    group_of = {int(p.pk): g for g, p in enumerate(loaded.points)}
     rows = (KitMeasurement.objects.filter(kit__in=rnd.kits,
                                           measurement_point_id__in=list(group_of))
-            .order_by("kit", "measurement_point", "measured_on")
+            .order_by("kit", "measurement_point", "measured_on", "participant__code")
             .values_list("kit_id", "measurement_point_id", "measured_on", "value",
-                         "expanded_uncertainty", "coverage_factor"))  # fmt: skip
-    cols = list(zip(*rows, strict=True)) or [()] * 6
+                         "expanded_uncertainty", "coverage_factor",
+                         "participant__code"))  # fmt: skip
+    cols = list(zip(*rows, strict=True)) or [()] * 7
     return Repeats(
         kit=np.array([index[k] for k in cols[0]], dtype=np.intp),
         group=np.array([group_of[p] for p in cols[1]], dtype=np.intp),
         day=np.array([day_of(d) for d in cols[2]], dtype=np.float64),
         value=np.array(cols[3], dtype=np.float64),
         u=np.array(cols[4], dtype=np.float64) / np.array(cols[5], dtype=np.float64),
+        lab=np.array([c or "" for c in cols[6]], dtype=object),
     )
-
-
-def _drift(rep: Repeats) -> Drift:
-    """Fit every (kit, point) series measured on two dates or more, all in one call."""
-    keys = list(zip(rep.kit.tolist(), rep.group.tolist(), strict=True))
-    dates: dict[tuple[int, int], set[float]] = defaultdict(set)
-    for key, day in zip(keys, rep.day.tolist(), strict=True):
-        dates[key].add(day)
-    usable = sorted(k for k, d in dates.items() if len(d) >= 2)
-    one = sorted(k for k, d in dates.items() if len(d) < 2)
-    if not usable:
-        return Drift(None, {}, one)
-    series = {k: i for i, k in enumerate(usable)}
-    rows = np.array([i for i, k in enumerate(keys) if k in series], dtype=np.intp)
-    groups = Groups.from_index(np.array([series[keys[i]] for i in rows]), len(usable))
-    try:
-        fit = drift_fit(rep.day[rows], rep.value[rows], groups, rep.u[rows])
-    except CoreInputError as exc:
-        raise ValidationFailed(f"The pilot's repeat measurements cannot be fitted: {exc}") from None
-    return Drift(fit, series, one)
 
 
 @dataclass(frozen=True)
@@ -233,58 +176,91 @@ def kit_prepare(run: AnalysisRun, loaded: LoadedRound) -> tuple[LoadedRound, Kit
         return _prepare(run, rnd, loaded)
 
 
-def _prepare(run: AnalysisRun, rnd: Round, loaded: LoadedRound) -> tuple[LoadedRound, KitOutputs]:
+@dataclass(frozen=True)
+class Observed:
+    """The chunk's observations with the drift handled: per result its kit, day and their
+    notes (``Dated``), shift and added u, its value on the line (a phase unwrapped,
+    docs/domain.md §14) and u; the kits' measurements the same; and what was fitted."""
+
+    dated: Dated
+    shift: np.ndarray
+    u_add: np.ndarray
+    values: np.ndarray
+    u: np.ndarray
+    measured: Repeats
+    line: OnLine
+    drift: Drift
+
+
+def _observed(rnd: Round, loaded: LoadedRound) -> tuple[Observed, LoadedRound]:
+    """The observations, and the results as the scores see them (a phase wrapped back)."""
     rep = _repeats(rnd, loaded)
-    drift = _drift(rep)
+    circular = np.array([is_circular(p.quantity) for p in loaded.points], dtype=bool)
+    line = on_line(loaded.table.value, loaded.groups.index, rep.value, rep.group, circular)
+    rep = dataclasses.replace(rep, value=line.measurements)
+    # the drift: the pilot's repeats only, a phase's on its line (none where it is refused)
+    drift = drift_of(rep.take((rep.lab == "") & ~line.refused[rep.group]))
     dated = _result_turns(rnd, loaded)
-    kit, day, several = dated.kit, dated.day, dated.several
-    shift, u_add = drift.shift(kit, loaded.groups.index, day, rnd.treatment, dated.u_day)
-    adjusted = _adjusted(loaded, shift, u_add)
+    shift, u_add = drift.shift(dated.kit, loaded.groups.index, dated.day, rnd.treatment,
+                               dated.u_day)  # fmt: skip
+    values = line.results + shift
+    adjusted = _adjusted(loaded, _wrapped(values, circular[loaded.groups.index]), shift, u_add)
     r_shift, r_u = drift.shift(rep.kit, rep.group, rep.day, rnd.treatment)
-    pilot_obs = dataclasses.replace(rep, value=rep.value + r_shift, u=np.hypot(rep.u, r_u))
+    measured = dataclasses.replace(rep, value=rep.value + r_shift, u=np.hypot(rep.u, r_u))
+    return Observed(dated, shift, u_add, values, adjusted.table.standard_uncertainty,
+                    measured, line, drift), adjusted  # fmt: skip
+
+
+def _prepare(run: AnalysisRun, rnd: Round, loaded: LoadedRound) -> tuple[LoadedRound, KitOutputs]:
+    o, adjusted = _observed(rnd, loaded)
     outputs = KitOutputs()
-    codes = loaded.table.lab
     # rows are loaded in point order (``load_round``): each point's rows are one slice
     order = np.argsort(loaded.groups.index, kind="stable")
     ends = np.cumsum(np.bincount(loaded.groups.index, minlength=len(loaded.points)))
-    repeats_of = _rows_by_group(rep.group)
+    measured_at = _rows_by_group(o.measured.group)
+    kit = o.dated.kit
     for g, point in enumerate(loaded.points):
         rows = order[(ends[g - 1] if g else 0) : ends[g]]
-        notes = _notes(rnd, drift, g, codes[rows], kit[rows], [several[i] for i in rows])
-        notes += [dated.strays[i] for i in rows.tolist() if dated.strays[i]]
-        fit = KitPointFit(run=run, measurement_point=point, drift=_drift_rows(rnd, drift, g),
-                          notes=notes)  # fmt: skip
-        linked = None
-        if len(rnd.kits) >= 2 and is_circular(point.quantity):
-            notes.append(
-                "a phase is not linked across kits: its scores are against the "
-                "round's assigned value (docs/domain.md §14)"
-            )
-        elif len(rnd.kits) >= 2:
-            take = repeats_of.get(g, np.zeros(0, dtype=np.intp))
-            linked = link_point(LinkInput(
-                method=point.assigned_value_method or run.comparison.assigned_value_method,
-                pilot=rnd.pilot, codes=codes[rows], kit=kit[rows],
-                value=adjusted.table.value[rows],
-                u=adjusted.table.standard_uncertainty[rows],
-                pilot_kit=pilot_obs.kit[take], pilot_value=pilot_obs.value[take],
-                pilot_u=pilot_obs.u[take], kit_names=[k.name for k in rnd.kits],
-            ))  # fmt: skip
-            fit.reference, fit.chi2, fit.dof = linked.reference, linked.chi2, linked.dof
-            fit.kit_values, fit.unlinked = linked.kit_values, linked.unlinked
-            fit.notes = notes + linked.notes
+        take = measured_at.get(g, np.zeros(0, dtype=np.intp))
+        fit, linked = _point_fit(run, rnd, loaded.table.lab[rows], o, g, point, rows, take)
         outputs.fits.append(fit)
         for j, i in enumerate(rows.tolist()):
             outputs.scores.append(KitScore(
                 run=run, result_id=int(loaded.result_id[i]),
                 kit=rnd.kits[kit[i]] if kit[i] >= 0 else None,
-                measured_on=date_of(day[i]) if kit[i] >= 0 else None,
-                drift_correction=float(shift[i]), u_drift=float(u_add[i]),
+                measured_on=date_of(o.dated.day[i]) if kit[i] >= 0 else None,
+                drift_correction=float(o.shift[i]), u_drift=float(o.u_add[i]),
                 linked_d=linked.d[j] if linked else None,
                 linked_u=linked.u_d[j] if linked else None,
                 u_link=linked.u_link[j] if linked else None,
             ))  # fmt: skip
     return adjusted, outputs
+
+
+def _point_fit(run: AnalysisRun, rnd: Round, codes: np.ndarray, o: Observed, g: int,
+               point: MeasurementPoint, rows: np.ndarray,
+               take: np.ndarray) -> tuple[KitPointFit, PointLink | None]:  # fmt: skip
+    """One point's drift, notes and link (two kits or more, a phase on its line)."""
+    circular = bool(o.line.circular[g])
+    measured = o.measured.take(take)
+    notes = _notes(rnd, o, g, point.device_id, codes, rows, measured)
+    fit = KitPointFit(run=run, measurement_point=point, notes=notes,
+                      drift=o.drift.rows([k.name for k in rnd.kits], g, circular))  # fmt: skip
+    if len(rnd.kits) < 2 or o.line.refused[g]:
+        return fit, None
+    pilot = measured.lab == ""
+    linked = link_point(LinkInput(
+        method=point.assigned_value_method or run.comparison.assigned_value_method,
+        pilot=rnd.pilot, codes=codes, kit=o.dated.kit[rows], value=o.values[rows], u=o.u[rows],
+        repeats=measured.at(pilot), linking=measured.at(~pilot),
+        kit_names=[k.name for k in rnd.kits],
+    ))  # fmt: skip
+    if circular:
+        wrap_link(linked)
+    fit.reference, fit.chi2, fit.dof = linked.reference, linked.chi2, linked.dof
+    fit.kit_values, fit.unlinked = linked.kit_values, linked.unlinked
+    fit.notes = notes + linked.notes
+    return fit, linked
 
 
 def _rows_by_group(group: np.ndarray) -> dict[int, np.ndarray]:
@@ -296,46 +272,57 @@ def _rows_by_group(group: np.ndarray) -> dict[int, np.ndarray]:
     return dict(zip(labels.tolist(), np.split(order, starts[1:]), strict=True))
 
 
-def _adjusted(loaded: LoadedRound, shift: np.ndarray, u_add: np.ndarray) -> LoadedRound:
-    """Values moved by ``shift`` and u² increased by ``u_add``² (U = k·u, the result's own
-    k); results with neither keep their stored numbers exactly."""
+def _wrapped(values: np.ndarray, circular: np.ndarray) -> np.ndarray:
+    """Values with a phase's wrapped back into (−180°, 180°] (docs/domain.md §12)."""
+    if not circular.any():
+        return values
+    return np.where(circular, wrap(np.where(circular, values, 0.0)), values)
+
+
+def _adjusted(loaded: LoadedRound, moved: np.ndarray, shift: np.ndarray,
+              u_add: np.ndarray) -> LoadedRound:  # fmt: skip
+    """Values ``moved`` where ``shift`` is not 0 and u² increased by ``u_add``² (U = k·u,
+    the result's own k); results with neither keep their stored numbers exactly."""
     changed = (shift != 0) | (u_add != 0)
     if not changed.any():
         return loaded
     t = loaded.table
     u = np.hypot(t.standard_uncertainty, u_add)
     table = dataclasses.replace(
-        t, value=np.where(changed, t.value + shift, t.value),
+        t, value=np.where(shift != 0, moved, t.value),
         expanded_uncertainty=np.where(changed, t.coverage_factor * u, t.expanded_uncertainty),
     )  # fmt: skip
     return dataclasses.replace(loaded, table=table)
 
 
-def _drift_rows(rnd: Round, drift: Drift, g: int) -> list[dict]:
-    f, out = drift.fit, []
-    for (k, group), s in sorted(drift.series.items()):
-        if group != g or f is None:
-            continue
-        p = float(f.p_value[s])
-        out.append({
-            "kit": rnd.kits[k].name, "n": int(f.n[s]), "model": f.model[s],
-            "slope": float(f.slope[s]), "u_slope": float(f.u_slope[s]),
-            "p_value": p if np.isfinite(p) else None, "t_mean": date_of(f.t_mean[s]).isoformat(),
-            "value": float(f.value[s]), "u_value": float(f.u_value[s]),
-        })  # fmt: skip
-    return out
-
-
-def _notes(rnd: Round, drift: Drift, g: int, codes: np.ndarray, kit: np.ndarray,
-           several: list[bool]) -> list[str]:  # fmt: skip
+def _notes(rnd: Round, o: Observed, g: int, device: int, codes: np.ndarray, rows: np.ndarray,
+           measured: Repeats) -> list[str]:  # fmt: skip
     notes = [f"{rnd.kits[k].name}: the pilot measured it on one date only, no drift judged"
-             for k, group in drift.one_date if group == g]  # fmt: skip
-    for code, k, two in zip(codes.tolist(), kit.tolist(), several, strict=True):
-        if two and code != rnd.pilot:
-            notes.append(f"{code} holds slots on two kits: its result is taken on "
-                         f"{rnd.kits[k].name}, its first slot (the results table has no kit "
-                         "column)")  # fmt: skip
-    return notes
+             for k, group in o.drift.one_date if group == g]  # fmt: skip
+    refused = o.line.note(g, len(rnd.kits))
+    notes += [refused] if refused else []
+    pairs = set(zip(measured.lab.tolist(), measured.kit.tolist(), strict=True))
+    for code, i in zip(codes.tolist(), rows.tolist(), strict=True):
+        if o.dated.several[i] and code != rnd.pilot:
+            mine = {k for c, k in pairs if c == code}
+            notes.append(_on_two_kits(rnd, code, device, int(o.dated.kit[i]), mine))
+    return notes + [o.dated.strays[i] for i in rows.tolist() if o.dated.strays[i]]
+
+
+def _on_two_kits(rnd: Round, code: str, device: int, k: int, measured: set[int]) -> str:
+    """What the run did with a laboratory holding slots on several kits (docs/domain.md
+    §14): its result is on its first kit; its measurements of the others link them."""
+    others = sorted({t.kit for t in rnd.turns[code] if (t.kit, device) in rnd.holds} - {k})
+    n = {1: "two", 2: "three"}.get(len(others), str(len(others) + 1))
+    said = (f"{code} holds slots on {n} kits: its result is taken on {rnd.kits[k].name}, "
+            "its first slot")  # fmt: skip
+    missing = [rnd.kits[j].name for j in others if j not in measured]
+    if not missing:
+        names = " and ".join(rnd.kits[j].name for j in others)
+        return f"{said}, and its measurement of {names} links the kits"
+    return (f"{said} (the results table has no kit column); its measurement of "
+            f"{' and '.join(missing)} here, stored with that kit's measurements under lab "
+            f"{code}, would link the kits")  # fmt: skip
 
 
 def kit_outputs_delete(run_id: int, first_point_id: int | None = None,

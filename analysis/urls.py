@@ -23,7 +23,6 @@ urlpatterns = [
     path(C + "publish/", views.publish, name="publish"),
     path(C + "publication/<int:pk>/", views.publication, name="publication"),
     path(C + "performance/", views.performance_page, COORD, name="performance"),
-    path(C + "results/kits/", kit_views.kits_page, COORD, name="results_kits"),
     path(
         C + "performance/<slug:lab>/",
         views.participant_performance,
@@ -42,6 +41,9 @@ for prefix, base, audience in (("", C, COORD), ("lab_", P, LAB)):
         path(base + "results/" if base == C else base, views.results, audience,
              name=prefix + "results"),
         path(base + "scores/", views.scores, audience, name=prefix + "scores"),
+        # a kits round's drift and link (docs/domain.md §13, §14)
+        path(base + ("results/kits/" if base == C else "kits/"), kit_views.kits_page, audience,
+             name=prefix + "results_kits"),
         path(base + "scores.<str:fmt>", views.scores_download, audience,
              name=prefix + "scores_download"),
         path(base + "charts/", chart_views.charts_page, audience, name=prefix + "charts"),

@@ -47,6 +47,6 @@ class Viewer:
                  ("compatibility", "Compatibility"), ("consistency", "Consistency")]  # fmt: skip
         if self.is_coordinator:
             pages.insert(1, ("performance", "Performance"))
-            if self.run is not None and self.run.kit_points.exists():  # docs/domain.md §14
-                pages.append(("results_kits", "Kits and linking"))
+        if self.run is not None and self.run.kit_points.exists():  # docs/domain.md §14
+            pages.append(("results_kits", "Kits and linking"))
         return [(page, label, self.url(page)) for page, label in pages]

@@ -243,22 +243,26 @@ def _results(points: list[MeasurementPoint], name: str,
 
 
 def _pilot_repeats(kit: Kit, turns: list[Turn], start: dt.date) -> None:
-    """The pilot's magnitude and angular-rate measurements of the kit in each of its slots
-    but a last one the kit has not reached: the copy's truth with the pilot's bias and a
-    small scatter (a phase is not drift-fitted, docs/domain.md §13, so it is not repeated)."""
-    rng = _lab_rng(kit.name)
+    """The pilot's measurements of the kit in each of its slots but a last one the kit has
+    not reached: the copy's truth with the pilot's bias and a small scatter; its phases
+    (U 0.05°, drawn from a stream of their own) link the phase points' loops (docs/domain.md
+    §14)."""
+    rng, phase_rng = _lab_rng(kit.name), _lab_rng(f"{kit.name} phase")
     rel = _biases(_lab_rng(PILOT))
     mine = [t for t in turns if t.kit == kit.name]
     if kit.name == IN_TRANSIT:
         mine = mine[:-1]
-    points = kit.comparison.measurement_points.exclude(quantity=PHASE).select_related("device")
+    points = kit.comparison.measurement_points.select_related("device")
     lines = ["device,axis,frequency_hz,bench,direction,amplitude_m_s2,quantity,measured_on,"
              "sensitivity,expanded_uncertainty"]  # fmt: skip
     for p in points.order_by("pk"):
         amplitude = "" if p.amplitude_m_s2 is None else repr(p.amplitude_m_s2)
-        u = 0.08 if p.quantity == MAGNITUDE else 0.004
+        u = {MAGNITUDE: 0.08, PHASE: 0.05}.get(p.quantity, 0.004)
         for t in mine:
-            value = _truth(p, kit.name, t.day) * (1 + rel[p.quantity]) + rng.normal(0, u / 4)
+            if p.quantity == PHASE:
+                value = _truth(p, kit.name, t.day) + rel[PHASE] + phase_rng.normal(0, u / 4)
+            else:
+                value = _truth(p, kit.name, t.day) * (1 + rel[p.quantity]) + rng.normal(0, u / 4)
             day = start + dt.timedelta(days=int(t.day))
             lines.append(f"{p.device.name},{p.axis},{p.frequency_hz!r},{p.bench},{p.direction},"
                          f"{amplitude},{p.quantity},{day},{value:.4f},{u}")  # fmt: skip

@@ -111,7 +111,7 @@ def _page(request: AuthenticatedHttpRequest, comparison: Comparison, *, status: 
             # the provider's dispatch arrives at the first slot, the last slot's goes back
             "circulating": bool(status_rows) and status_rows[0].arrival is not None,
             "returned": status_rows[-1].departure if status_rows else None,
-            "drift": kits.kit_drift(kit),
+            "drift": kits.kit_drift(kit), "linking": kits.kit_linking_counts(kit),
         })  # fmt: skip
     context = {
         "comparison": comparison, "kits": rows, "plan_help": PLAN_HELP,
@@ -199,7 +199,8 @@ def kit_returned(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpR
 @login_required
 @require_POST
 def kit_measurements(request: AuthenticatedHttpRequest, code: str, pk: int) -> HttpResponse:
-    """Replace the pilot's repeat measurements of a kit (CSV), from which its drift is judged."""
+    """Replace the measurements of a kit (CSV): the pilot's repeats, from which its drift
+    is judged, and the linking laboratories' (docs/domain.md §14, §15)."""
     comparison = coordinated(request, code)
     kit = _kit(comparison, pk)
     text = request.POST.get("measurements", "")
@@ -209,5 +210,5 @@ def kit_measurements(request: AuthenticatedHttpRequest, code: str, pk: int) -> H
         n = kits.kit_measurements_replace(kit=kit, text=text)
     except ApplicationError as exc:
         return _refused(request, comparison, kit, exc)
-    messages.success(request, f"{n} pilot measurement{'s' if n != 1 else ''} of {kit.name} stored.")
+    messages.success(request, f"{n} measurement{'s' if n != 1 else ''} of {kit.name} stored.")
     return redirect("coordinator:kits", code=code)

@@ -184,7 +184,8 @@ class HandoverAdmin(RecordedByServicesAdmin):
 
 @admin.register(KitMeasurement)
 class KitMeasurementAdmin(RecordedByServicesAdmin):
-    list_display = ["kit", "measurement_point", "measured_on", "value", "expanded_uncertainty"]
+    list_display = ["kit", "measurement_point", "participant", "measured_on", "value",
+                    "expanded_uncertainty"]  # fmt: skip
     list_filter = ["kit__comparison", "kit"]
     search_fields = ["kit__name", "kit__comparison__code", "measurement_point__device__name"]
-    list_select_related = ["kit__comparison", "measurement_point__device"]
+    list_select_related = ["kit__comparison", "measurement_point__device", "participant"]

@@ -9,35 +9,30 @@ coordinator sees the whole plan with what is late, overdue or arrived damaged.
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
-import io
-import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-import numpy as np
 from django.contrib.auth.models import User
 from django.core.files.base import File
 from django.db import IntegrityError, transaction
 from django.db.models import Q
 from django.utils import timezone
 
-from analysis.core.drift import DriftFit, drift_fit
-from analysis.core.groups import CoreInputError, Groups
-from common import quantities
 from common.errors import StateConflict, ValidationFailed
-from common.points import PointKey, point_label
-from labs.models import Handover, KitMeasurement, KitSlot, Participant
-from labs.selectors import comparison_table
+
+# the kit's measurements (the pilot's repeats, the linking laboratories') and its drift
+# live in labs.kit_measurements; named here too, where the kits' services are looked for
+from labs.kit_measurements import MEASUREMENT_COLUMNS as MEASUREMENT_COLUMNS
+from labs.kit_measurements import DriftRow as DriftRow
+from labs.kit_measurements import kit_drift as kit_drift
+from labs.kit_measurements import kit_linking_counts as kit_linking_counts
+from labs.kit_measurements import kit_measurements_replace as kit_measurements_replace
+from labs.models import Handover, KitSlot, Participant
 from proficiency.models import Device, Kit, KitItem
 
 MAX_SLOTS = 1000
 MAX_TEXT = 1000
-MAX_MEASUREMENTS = 100_000
-#: the columns of a kit's pilot measurements, in order (docs/domain.md §15)
-MEASUREMENT_COLUMNS = ("device", "axis", "frequency_hz", "bench", "direction", "measured_on",
-                       "sensitivity", "expanded_uncertainty", "coverage_factor")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -265,164 +260,3 @@ def circulation_status(kit: Kit, today: dt.date | None = None) -> list[SlotStatu
                                                Handover.Condition.INCOMPLETE)),
         ))  # fmt: skip
     return out
-
-
-# --- the pilot's repeats and the kit's drift -------------------------------------------------
-
-
-def _finite(text: str, what: str, *, positive: bool = False) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise ValueError(f"{what} must be a number, got {text[:20]!r}") from None
-    if not math.isfinite(value) or (positive and not value > 0):
-        raise ValueError(f"{what} must be finite{' and > 0' if positive else ''}")
-    return value
-
-
-def _quantity(text: str) -> str:
-    """The optional quantity column of a pilot's file (blank or absent: the magnitude)."""
-    try:
-        return quantities.parse(text)
-    except ValueError as problem:
-        raise ValueError(f"quantity {problem}") from None
-
-
-def _measurement(kit: Kit, row: dict[str, str], points: dict[PointKey, int]) -> KitMeasurement:
-    def cell(name: str) -> str:
-        return (row.get(name) or "").strip()
-
-    text = cell("amplitude_m_s2")
-    amplitude = _finite(text, "amplitude_m_s2", positive=True) if text else None
-    frequency = _finite(cell("frequency_hz"), "frequency_hz", positive=True)
-    key = PointKey(cell("device"), cell("axis"), frequency, cell("bench"), cell("direction"),
-                   amplitude, _quantity(cell("quantity")))  # fmt: skip
-    point = points.get(key)
-    if point is None:
-        raise ValueError(f"{point_label(key)} is not a measurement point of this round")
-    try:
-        measured_on = dt.date.fromisoformat(cell("measured_on"))
-    except ValueError:
-        raise ValueError(
-            f"measured_on must be a date YYYY-MM-DD, got {cell('measured_on')[:20]!r}"
-        ) from None
-    k = cell("coverage_factor")
-    return KitMeasurement(
-        kit=kit, measurement_point_id=point, measured_on=measured_on,
-        value=quantities.stored_value(key.quantity, _finite(cell("sensitivity"), "sensitivity")),
-        expanded_uncertainty=_finite(cell("expanded_uncertainty"), "expanded_uncertainty",
-                                     positive=True),
-        coverage_factor=_finite(k, "coverage_factor", positive=True) if k else 2.0,
-    )  # fmt: skip
-
-
-@transaction.atomic
-def kit_measurements_replace(*, kit: Kit, text: str) -> int:
-    """Replace the pilot's measurements of ``kit`` with the CSV ``text``: a header line
-    naming the columns (:data:`MEASUREMENT_COLUMNS`, in any order; ``amplitude_m_s2`` for
-    points that have one, ``coverage_factor`` optional, ``quantity`` optional: blank or
-    absent is the magnitude, a phase is stored wrapped into (−180°, 180°]), then one line
-    per measurement.  Every bad line is named and nothing is stored unless all are good."""
-    try:
-        return _measurements_store(kit, csv.DictReader(io.StringIO(text)))
-    except csv.Error as exc:  # a field over csv's limit, a broken quote: say so, store nothing
-        raise ValidationFailed(f"The pilot's measurements are not a readable CSV: {exc}.") from None
-
-
-def _measurements_store(kit: Kit, reader: csv.DictReader[str]) -> int:
-    header = {(c or "").strip() for c in reader.fieldnames or []}
-    missing = [c for c in MEASUREMENT_COLUMNS[:8] if c not in header]
-    if missing:
-        raise ValidationFailed(
-            f"The first line must name the columns {', '.join(MEASUREMENT_COLUMNS)} "
-            f"(amplitude_m_s2 where a point has one); missing: {', '.join(missing)}."
-        )
-    rows = [r for r in reader if any((v or "").strip() for v in r.values() if isinstance(v, str))]
-    if len(rows) > MAX_MEASUREMENTS:
-        raise ValidationFailed(f"At most {MAX_MEASUREMENTS} measurements per kit.")
-    points = comparison_table(kit.comparison).point_ids
-    found, errors, seen = [], [], set()
-    for n, row in enumerate(rows, start=2):
-        try:
-            if None in row:
-                raise ValueError("more fields than the header names")
-            m = _measurement(kit, {k.strip(): v for k, v in row.items()}, points)
-            if "\x00" in "".join(v for v in row.values() if isinstance(v, str)):
-                raise ValueError("a NUL character in the line")
-        except ValueError as exc:
-            errors.append({"row": n, "message": str(exc)})
-            continue
-        if (m.measurement_point_id, m.measured_on) in seen:
-            errors.append({"row": n, "message": "a second measurement of this point that day"})
-        seen.add((m.measurement_point_id, m.measured_on))
-        found.append(m)
-    if errors:
-        raise ValidationFailed(f"The pilot's measurements of {kit.name} have errors.",
-                               errors=errors[:100])  # fmt: skip
-    KitMeasurement.objects.filter(kit=kit).delete()
-    KitMeasurement.objects.bulk_create(found, batch_size=5000)
-    return len(found)
-
-
-@dataclass(frozen=True)
-class DriftRow:
-    """One point of a kit: the pilot's repeats, the model chosen and what it means for the
-    loop (the largest u_stab at a participant's slot, were the drift not corrected)."""
-
-    label: str
-    n: int
-    first: dt.date
-    last: dt.date
-    model: str
-    value: float
-    u_value: float
-    slope_per_day: float
-    u_slope: float
-    p_value: float
-    u_stab_max: float
-
-
-def _days(dates: Sequence[dt.date]) -> np.ndarray:
-    return np.array([d.toordinal() for d in dates], dtype=np.float64)
-
-
-def kit_drift(kit: Kit) -> tuple[list[DriftRow], list[str]]:
-    """The drift of every point the pilot measured at least twice on two dates
-    (analysis.core.drift; u of a change over time = U/k of each repeat), and notes for
-    the points it could not judge."""
-    rows = list(KitMeasurement.objects.filter(kit=kit).select_related("measurement_point__device")
-                .order_by("measurement_point", "measured_on"))  # fmt: skip
-    by_point: dict[int, list[KitMeasurement]] = {}
-    for m in rows:
-        by_point.setdefault(m.measurement_point_id, []).append(m)
-    notes, usable = [], []
-    for series in by_point.values():
-        label = str(series[0].measurement_point)
-        if len({m.measured_on for m in series}) < 2:
-            notes.append(f"{label}: measured on one date only, no drift can be judged")
-        else:
-            usable.append(series)
-    if not usable:
-        return [], notes
-    flat = [m for series in usable for m in series]
-    groups = Groups.from_index(np.repeat(np.arange(len(usable)), [len(s) for s in usable]))
-    try:
-        u = [m.expanded_uncertainty / m.coverage_factor for m in flat]
-        days = _days([m.measured_on for m in flat])
-        fit: DriftFit = drift_fit(days, [m.value for m in flat], groups, u)
-    except CoreInputError as exc:
-        raise ValidationFailed(str(exc)) from None
-    others = KitSlot.objects.filter(kit=kit).exclude(participant__is_reference=True)
-    mids = [s.starts_on + (s.ends_on - s.starts_on) / 2 for s in others]
-    out = []
-    for g, series in enumerate(usable):
-        u_stab = fit.u_stab(np.full(len(mids), g), _days(mids)) if mids else np.zeros(1)
-        out.append(DriftRow(
-            label=str(series[0].measurement_point), n=int(fit.n[g]),
-            first=series[0].measured_on, last=series[-1].measured_on, model=fit.model[g],
-            value=float(fit.value[g]), u_value=float(fit.u_value[g]),
-            slope_per_day=float(fit.slope[g]),
-            u_slope=float(fit.u_slope[g]), p_value=float(fit.p_value[g]),
-            u_stab_max=float(u_stab.max()),
-        ))  # fmt: skip
-    return out, notes

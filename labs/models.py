@@ -650,8 +650,10 @@ class Handover(models.Model):
 
 
 class KitMeasurement(models.Model):
-    """The pilot's measurement of one kit at one point on one date (docs/domain.md §13, §15):
-    the repeats over the circulation from which the kit's drift is judged."""
+    """A measurement of one kit at one point on one date (docs/domain.md §13–§15): without
+    a participant, the pilot's repeat over the circulation from which the kit's drift is
+    judged (U for a change over time); with one, that linking laboratory's measurement of
+    a kit of its other loop (its full U), which links the two loops."""
 
     kit = models.ForeignKey(
         "proficiency.Kit", on_delete=models.CASCADE, related_name="measurements"
@@ -659,10 +661,16 @@ class KitMeasurement(models.Model):
     measurement_point = models.ForeignKey(
         "proficiency.MeasurementPoint", on_delete=models.CASCADE, related_name="kit_measurements"
     )
+    participant = models.ForeignKey(
+        Participant, null=True, blank=True, on_delete=models.CASCADE,
+        related_name="kit_measurements",
+        help_text="the linking laboratory that measured it; empty: the pilot's repeat",
+    )  # fmt: skip
     measured_on = models.DateField()
     value = models.FloatField()
     expanded_uncertainty = models.FloatField(
-        help_text="U for a change over time (the pilot's reproducibility), k as given"
+        help_text="the pilot's repeat: U for a change over time (its reproducibility); a "
+        "laboratory's: its full U; k as given"
     )
     coverage_factor = models.FloatField(default=2.0)
 
@@ -670,7 +678,13 @@ class KitMeasurement(models.Model):
         ordering = ["kit", "measurement_point", "measured_on"]
         constraints = [
             models.UniqueConstraint(
-                fields=["kit", "measurement_point", "measured_on"], name="kit_measurement_once"
+                fields=["kit", "measurement_point", "measured_on"],
+                condition=Q(participant__isnull=True),
+                name="kit_measurement_once",
+            ),
+            models.UniqueConstraint(
+                fields=["kit", "measurement_point", "measured_on", "participant"],
+                name="kit_measurement_lab_once",
             ),
             models.CheckConstraint(
                 condition=Q(expanded_uncertainty__gt=0) & Q(coverage_factor__gt=0),

@@ -3,13 +3,15 @@ files read back into records, and the record-with-fit figure.  Each owns its joi
 
 from __future__ import annotations
 
-from typing import cast
+from collections.abc import Mapping
+from typing import Any, cast
 
 from django.db.models import QuerySet
 
 from analysis.core.signals.records import Record
 from common import quantities
-from common.errors import NotVisible
+from common.errors import NotVisible, ValidationFailed
+from common.points import PointKey, point_label
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord
 from labs.raw import fit_figure_svg, read_record
 from proficiency.models import MeasurementPoint
@@ -81,3 +83,60 @@ def raw_point_choices(participant: Participant) -> QuerySet[MeasurementPoint]:
         .select_related("device")
         .order_by(*cast(list[str], MeasurementPoint._meta.ordering))
     )
+
+
+# --- the point a raw record names -------------------------------------------------------
+
+
+def raw_point_find(participant: Participant, fields: Mapping[str, Any]) -> MeasurementPoint:
+    """The comparison's point named like a results-table row (docs/interfaces.md §1 columns,
+    ``quantity`` blank or absent meaning ``magnitude``).  A point that exists only as other
+    kinds is refused, naming them: the kind decides which figure is compared, so it is
+    never guessed."""
+    quantity = _quantity(fields)
+    same = MeasurementPoint.objects.filter(
+        comparison=participant.comparison,
+        device__name=fields["device"],
+        axis=str(fields["axis"]).upper(),
+        frequency_hz=fields["frequency_hz"],
+        bench=fields["bench"],
+        direction=fields.get("direction") or "vertical",
+        amplitude_m_s2=fields.get("amplitude_m_s2"),
+    )
+    found = same.filter(quantity=quantity).first()
+    if found is None:
+        others = sorted(set(same.values_list("quantity", flat=True)))
+        hint = (
+            f"it has that point as {', '.join(others)} only: name the quantity "
+            f"(quantity={others[0]})"
+            if others
+            else "see the comparison's measurement points (the results template lists them)"
+        )
+        raise ValidationFailed(
+            f"{participant.comparison.code} has no measurement point {_named(fields)} "
+            f"({quantities.kind(quantity).label}); {hint}.",
+            errors=[{"field": "quantity" if others else "device",
+                     "message": "no such measurement point"}],
+        )  # fmt: skip
+    return found
+
+
+def _named(fields: Mapping[str, Any]) -> str:
+    """The point the fields name, as people write it (``IMU 1, X, 160 Hz, linear vertical``)."""
+    try:
+        f = float(fields["frequency_hz"])
+    except (TypeError, ValueError):
+        return ", ".join(f"{k} {fields.get(k)}" for k in PointKey._fields if fields.get(k))
+    key = PointKey(str(fields["device"]), str(fields["axis"]).upper(), f, str(fields["bench"]),
+                   fields.get("direction") or "vertical", fields.get("amplitude_m_s2"))  # fmt: skip
+    return point_label(key)
+
+
+def _quantity(fields: Mapping[str, Any]) -> str:
+    """The named kind (``common.quantities.parse``); 400 on the field otherwise."""
+    try:
+        return quantities.parse(fields.get("quantity"))
+    except ValueError as exc:
+        message = f"quantity {exc}"
+        error = {"field": "quantity", "message": message}
+        raise ValidationFailed(message, errors=[error]) from None

@@ -37,14 +37,14 @@ from django.utils import timezone
 import proficiency
 from analysis.core.groups import CoreInputError
 from analysis.core.signals.records import SignalInputError
-from common import jobs, quantities
+from common import jobs
 from common.errors import RequestTooLarge, ValidationFailed
 from common.jobs import heartbeat
-from common.points import PointKey, point_label
 from labs.importers.values import human_size
 from labs.models import Participant, RawFile, RawRecomputation, RawRecord, Result, Submission
 from labs.raw import form_metadata, read_record, sidecar_json
 from labs.raw_outputs import en_number, recomputed_outputs
+from labs.raw_selectors import raw_point_find
 
 __all__ = ["en_number"]  # its home before labs.raw_outputs; callers import it from here
 from labs.tasks import raw_recompute_task
@@ -98,60 +98,6 @@ def raw_declared_too_large(meta: Mapping[str, Any]) -> str | None:
 
 
 # --- upload ------------------------------------------------------------------------------
-
-
-def raw_point_find(participant: Participant, fields: Mapping[str, Any]) -> MeasurementPoint:
-    """The comparison's point named like a results-table row (docs/interfaces.md §1 columns,
-    ``quantity`` blank or absent meaning ``magnitude``).  A point that exists only as other
-    kinds is refused, naming them: the kind decides which figure is compared, so it is
-    never guessed."""
-    quantity = _quantity(fields)
-    same = MeasurementPoint.objects.filter(
-        comparison=participant.comparison,
-        device__name=fields["device"],
-        axis=str(fields["axis"]).upper(),
-        frequency_hz=fields["frequency_hz"],
-        bench=fields["bench"],
-        direction=fields.get("direction") or "vertical",
-        amplitude_m_s2=fields.get("amplitude_m_s2"),
-    )
-    found = same.filter(quantity=quantity).first()
-    if found is None:
-        others = sorted(set(same.values_list("quantity", flat=True)))
-        hint = (
-            f"it has that point as {', '.join(others)} only: name the quantity "
-            f"(quantity={others[0]})"
-            if others
-            else "see the comparison's measurement points (the results template lists them)"
-        )
-        raise ValidationFailed(
-            f"{participant.comparison.code} has no measurement point {_named(fields)} "
-            f"({quantities.kind(quantity).label}); {hint}.",
-            errors=[{"field": "quantity" if others else "device",
-                     "message": "no such measurement point"}],
-        )  # fmt: skip
-    return found
-
-
-def _named(fields: Mapping[str, Any]) -> str:
-    """The point the fields name, as people write it (``IMU 1, X, 160 Hz, linear vertical``)."""
-    try:
-        f = float(fields["frequency_hz"])
-    except (TypeError, ValueError):
-        return ", ".join(f"{k} {fields.get(k)}" for k in PointKey._fields if fields.get(k))
-    key = PointKey(str(fields["device"]), str(fields["axis"]).upper(), f, str(fields["bench"]),
-                   fields.get("direction") or "vertical", fields.get("amplitude_m_s2"))  # fmt: skip
-    return point_label(key)
-
-
-def _quantity(fields: Mapping[str, Any]) -> str:
-    """The named kind (``common.quantities.parse``); 400 on the field otherwise."""
-    try:
-        return quantities.parse(fields.get("quantity"))
-    except ValueError as exc:
-        message = f"quantity {exc}"
-        error = {"field": "quantity", "message": message}
-        raise ValidationFailed(message, errors=[error]) from None
 
 
 def _reported(participant: Participant, point: MeasurementPoint) -> tuple[Submission, Result]:

@@ -74,7 +74,9 @@ def kit_section_of_run(run: AnalysisRun, index: dict[int, int]) -> KitSection | 
         text += (
             f" Every participant's degree of equivalence d against one reference, "
             f"{ref}, across the kits was found by least squares over the kits and loops "
-            f"at {counted(len(linked), 'point')} (the pilot's repeats linking the kits); "
+            f"at {counted(len(linked), 'point')} (the pilot's repeats and the linking "
+            "laboratories' measurements of their other kits linking the kits, the phases "
+            "laid on a line about their circular mean); "
             "U(d) = 2·u(d), and u_link is the part of u(d) that is not the laboratory's "
             f"own. {counted(len(fits) - len(linked), 'point')} could not be linked."
         )

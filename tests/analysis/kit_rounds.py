@@ -46,9 +46,11 @@ def make_round(*, method: str = "reference", seed: int = 1) -> dict:
             "labs": parts[1:]}  # fmt: skip
 
 
-def add_kit(r: dict, name: str, labs: list, *, drift: float = 0.0, offset: float = 0.0) -> Kit:
+def add_kit(r: dict, name: str, labs: list, *, drift: float = 0.0, offset: float = 0.0,
+            repeats: bool = True) -> Kit:  # fmt: skip
     """A kit whose loop is the pilot, ``labs`` (ten days each, a day apart), the pilot
-    again; the pilot's repeats at :data:`PILOT_DAYS` drift by ``drift`` per day."""
+    again; the pilot's repeats at :data:`PILOT_DAYS` drift by ``drift`` per day (none
+    without ``repeats``)."""
     kit = kit_create(comparison_id=r["comparison"].pk, name=name, serials={r["device"]: name})
     plan = [SlotPlan(r["pilot"], START, START)]
     day = START + dt.timedelta(days=2)
@@ -58,6 +60,8 @@ def add_kit(r: dict, name: str, labs: list, *, drift: float = 0.0, offset: float
     plan.append(SlotPlan(r["pilot"], START + dt.timedelta(days=120),
                          START + dt.timedelta(days=120)))  # fmt: skip
     circulation_set(kit=kit, plan=plan)
+    if not repeats:
+        return kit
     wobble = (0.01, -0.012, 0.008, -0.006)
     KitMeasurement.objects.bulk_create(
         KitMeasurement(kit=kit, measurement_point=p, measured_on=START + dt.timedelta(days=d),

@@ -103,6 +103,18 @@ def test_a_participant_sees_its_own_link_only(linked):
     client = APIClient()
     client.force_login(member)
     assert client.get(f"/coordinator/{c.code}/results/kits/").status_code == 404
+    assert "Kits and linking" in client.get(f"/results/{c.code}/").content.decode()
+    page = client.get(f"/results/{c.code}/kits/")
+    assert page.status_code == 200
+    html = page.content.decode()
+    for point in (0, 1):
+        k = row_of(linked, "L2", point)
+        assert k.linked_d is not None and k.linked_u is not None
+        assert numbers.round_to_uncertainty(k.linked_d, 2 * k.linked_u, sign=True) in html
+    # the round's figures, and of the laboratories its own code only: no other's kit or date
+    assert "Kit B" in html and "drifting" in html and "Your results" in html
+    assert set(re.findall(r"<code[^>]*>(L\d+)</code>", html)) == {"L2"}
+    assert "Messages of the run" not in html
 
 
 def test_the_reports_say_what_was_done(linked):

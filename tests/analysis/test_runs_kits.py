@@ -354,25 +354,3 @@ def test_chunks_store_the_same_kit_rows_as_one_task(run_of, settings):
     assert chunked.chunks_total == 2 and one.chunks_total == 1
     assert rows(chunked) == rows(one) and len(rows(one)) == 14
     assert scores(chunked) == scores(one)
-
-
-def test_a_phase_point_of_a_two_kit_round_is_neither_drift_corrected_nor_linked(run_of):
-    """A phase lives on a circle (docs/domain.md §12): a line through the pilot's phases
-    or a linear link is not what §13/§14 fit, so the point says so and keeps the round's
-    assigned value; the magnitude point beside it is linked as before."""
-    r = make_round()
-    phase = r["points"][1]
-    phase.quantity = "phase"
-    phase.save(update_fields=["quantity"])
-    Result.objects.filter(measurement_point=phase).update(value=-4.0, expanded_uncertainty=0.5)
-    add_kit(r, "Kit A", r["labs"][:3])
-    add_kit(r, "Kit B", r["labs"][3:], drift=0.02, offset=0.6)
-    run = run_of(r["comparison"])
-    fit = KitPointFit.objects.get(run=run, measurement_point=phase)
-    assert fit.chi2 is None and fit.kit_values in ([], None) and fit.drift == []
-    assert any("a phase is not linked across kits" in n for n in fit.notes)
-    on_phase = KitScore.objects.filter(run=run, result__measurement_point=phase)
-    assert on_phase.count() == 7
-    assert set(on_phase.values_list("linked_d", "drift_correction")) == {(None, 0.0)}
-    magnitude = KitPointFit.objects.get(run=run, measurement_point=r["points"][0])
-    assert magnitude.chi2 is not None and magnitude.reference == "pilot"

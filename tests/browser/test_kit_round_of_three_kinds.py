@@ -134,7 +134,9 @@ def test_a_kit_round_of_three_kinds_from_the_kits_to_the_published_scores(
     # the Kits and linking tab: Kit B's drift corrected, a laboratory's linked d and u_link
     page.goto(f"{base}/coordinator/{CODE}/results/")
     page.get_by_role("link", name="Kits and linking").click()
-    expect(page.locator("main")).to_contain_text("a phase is not linked across kits")
+    # a phase point is linked too, on its phases laid on a line (docs/domain.md §14)
+    phase_row = page.locator("tr").filter(has_text="linear vertical, phase")
+    expect(phase_row.filter(has_text="pilot").first).to_be_visible()
     drift = page.locator("tr").filter(has_text=RATE_POINT).filter(has_text="Kit B")
     expect(drift.first).to_contain_text("drifting")
     at_rate = KitScore.objects.select_related("kit", "result__submission__participant").filter(

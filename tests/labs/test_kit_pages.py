@@ -137,3 +137,19 @@ def test_the_pilots_file_help_names_the_quantity_column(db):
                                                     f"serial_{devices[0].pk}": "SN-1"})  # fmt: skip
     page = coord.get(f"/coordinator/{c.code}/kits/").content.decode()
     assert "<code>quantity</code> optional (magnitude, phase or angular_rate" in page
+
+
+def test_the_comparison_pages_name_each_points_quantity(db):
+    """A magnitude and a phase at the same device, axis, frequency and bench are two
+    measurands: the lab's and the coordinator's lists of points tell them apart."""
+    from tests.factories import MeasurementPointFactory
+
+    c, devices, a, _b, coord = _world(db)
+    for quantity in ("magnitude", "phase", "angular_rate"):
+        MeasurementPointFactory.create(device=devices[0], frequency_hz=10.0, quantity=quantity)
+    for page in (_member(a).get(f"/lab/comparisons/{c.code}/"),
+                 coord.get(f"/coordinator/{c.code}/")):  # fmt: skip
+        assert page.status_code == 200
+        html = page.content.decode()
+        for label in ("sensitivity magnitude", "sensitivity phase", "angular-rate sensitivity"):
+            assert f"<td>{label}</td>" in html, label

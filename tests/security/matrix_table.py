@@ -366,6 +366,10 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 404 404 302 302 404",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    "results/<slug:code>/kits/": Row(
+        get="302 404 404 404 404 404 302 302 404",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
     "results/<slug:code>/scores.<str:fmt>": Row(
         get="302 404 404 404 404 404 302 302 404",
         post="302 405 405 405 405 405 302 302 405",
@@ -654,6 +658,7 @@ OPTIONAL = {"healthz", "healthz/"}
 PUBLISHED: dict[str, Row] = {
     "results/<slug:code>/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/scores/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
+    "results/<slug:code>/kits/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/scores.<str:fmt>": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/charts/": Row(get="302 200 200 200 404 404 302 302 404", post=""),
     "results/<slug:code>/charts/<slug:chart>.<str:ext>": Row(

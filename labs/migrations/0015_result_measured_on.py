@@ -6,7 +6,7 @@ from django.db import migrations, models
 class Migration(migrations.Migration):
 
     dependencies = [
-        ('labs', '0013_result_value_finite'),
+        ('labs', '0014_kit_measurement_participant'),
     ]
 
     operations = [

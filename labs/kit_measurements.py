@@ -1,0 +1,257 @@
+"""Measurements of a kit (docs/domain.md §13–§15): the pilot's repeats, from which each
+point's drift is judged, and the measurements a linking laboratory makes of a kit of its
+other loop, which link the two loops.
+
+One CSV per kit, by column name: a line with ``lab`` empty is the pilot's repeat (U for a
+change over time, its reproducibility); a line naming a participant's code is that
+laboratory's measurement of this kit (its full U), and the participant must hold a slot
+on this kit.  Every bad line is named and nothing is stored unless all are good.
+"""
+
+from __future__ import annotations
+
+import csv
+import datetime as dt
+import io
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from django.db import transaction
+from django.db.models import Count
+
+from analysis.core.drift import DriftFit, drift_fit
+from analysis.core.groups import CoreInputError, Groups
+from analysis.core.phase import circular_mean, unwrap_about, wrap
+from common import quantities
+from common.errors import ValidationFailed
+from common.points import PointKey, point_label
+from labs.models import KitMeasurement, KitSlot, Participant
+from labs.selectors import comparison_table
+from proficiency.models import Kit
+
+MAX_MEASUREMENTS = 100_000
+#: the columns of a kit's measurements (docs/domain.md §15): the first eight are required
+MEASUREMENT_COLUMNS = ("device", "axis", "frequency_hz", "bench", "direction", "measured_on",
+                       "sensitivity", "expanded_uncertainty", "coverage_factor", "lab")  # fmt: skip
+
+
+def _finite(text: str, what: str, *, positive: bool = False) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"{what} must be a number, got {text[:20]!r}") from None
+    if not math.isfinite(value) or (positive and not value > 0):
+        raise ValueError(f"{what} must be finite{' and > 0' if positive else ''}")
+    return value
+
+
+def _quantity(text: str) -> str:
+    """The optional quantity column (blank or absent: the magnitude)."""
+    try:
+        return quantities.parse(text)
+    except ValueError as problem:
+        raise ValueError(f"quantity {problem}") from None
+
+
+@dataclass(frozen=True)
+class _Context:
+    """What every line of one kit's file is checked against."""
+
+    kit: Kit
+    points: dict[PointKey, int]
+    participants: dict[str, int]  # code -> id, of the round
+    on_kit: set[int]  # participant ids holding a slot on the kit
+
+    @classmethod
+    def of(cls, kit: Kit) -> _Context:
+        codes = Participant.objects.filter(comparison_id=kit.comparison_id)
+        return cls(
+            kit=kit, points=comparison_table(kit.comparison).point_ids,
+            participants=dict(codes.values_list("code", "pk")),
+            on_kit=set(KitSlot.objects.filter(kit=kit).values_list("participant_id", flat=True)),
+        )  # fmt: skip
+
+    def participant(self, code: str) -> int | None:
+        """The linking laboratory of a line (None: the pilot's repeat)."""
+        if not code:
+            return None
+        pk = self.participants.get(code)
+        if pk is None:
+            raise ValueError(f"lab: no participant {code[:40]!r} in this round")
+        if pk not in self.on_kit:
+            raise ValueError(
+                f"lab: {code} holds no slot on {self.kit.name}, so it cannot have measured "
+                "it (only the laboratories of its loop do)"
+            )
+        return pk
+
+
+def _measurement(ctx: _Context, row: dict[str, str]) -> KitMeasurement:
+    def cell(name: str) -> str:
+        return (row.get(name) or "").strip()
+
+    text = cell("amplitude_m_s2")
+    amplitude = _finite(text, "amplitude_m_s2", positive=True) if text else None
+    frequency = _finite(cell("frequency_hz"), "frequency_hz", positive=True)
+    key = PointKey(cell("device"), cell("axis"), frequency, cell("bench"), cell("direction"),
+                   amplitude, _quantity(cell("quantity")))  # fmt: skip
+    point = ctx.points.get(key)
+    if point is None:
+        raise ValueError(f"{point_label(key)} is not a measurement point of this round")
+    try:
+        measured_on = dt.date.fromisoformat(cell("measured_on"))
+    except ValueError:
+        raise ValueError(
+            f"measured_on must be a date YYYY-MM-DD, got {cell('measured_on')[:20]!r}"
+        ) from None
+    k = cell("coverage_factor")
+    return KitMeasurement(
+        kit=ctx.kit, measurement_point_id=point, measured_on=measured_on,
+        participant_id=ctx.participant(cell("lab")),
+        value=quantities.stored_value(key.quantity, _finite(cell("sensitivity"), "sensitivity")),
+        expanded_uncertainty=_finite(cell("expanded_uncertainty"), "expanded_uncertainty",
+                                     positive=True),
+        coverage_factor=_finite(k, "coverage_factor", positive=True) if k else 2.0,
+    )  # fmt: skip
+
+
+@transaction.atomic
+def kit_measurements_replace(*, kit: Kit, text: str) -> int:
+    """Replace the measurements of ``kit`` with the CSV ``text``: a header line naming the
+    columns (:data:`MEASUREMENT_COLUMNS`, in any order; ``amplitude_m_s2`` for points that
+    have one, ``coverage_factor`` optional, ``quantity`` optional: blank or absent is the
+    magnitude, a phase is stored wrapped into (−180°, 180°]; ``lab`` optional: blank or
+    absent is the pilot's repeat, a code that linking laboratory's measurement), then one
+    line per measurement.  Every bad line is named and nothing is stored unless all are
+    good."""
+    try:
+        return _measurements_store(kit, csv.DictReader(io.StringIO(text)))
+    except csv.Error as exc:  # a field over csv's limit, a broken quote: say so, store nothing
+        raise ValidationFailed(f"The measurements are not a readable CSV: {exc}.") from None
+
+
+def _measurements_store(kit: Kit, reader: csv.DictReader[str]) -> int:
+    header = {(c or "").strip() for c in reader.fieldnames or []}
+    missing = [c for c in MEASUREMENT_COLUMNS[:8] if c not in header]
+    if missing:
+        raise ValidationFailed(
+            f"The first line must name the columns {', '.join(MEASUREMENT_COLUMNS)} "
+            f"(amplitude_m_s2 where a point has one); missing: {', '.join(missing)}."
+        )
+    rows = [r for r in reader if any((v or "").strip() for v in r.values() if isinstance(v, str))]
+    if len(rows) > MAX_MEASUREMENTS:
+        raise ValidationFailed(f"At most {MAX_MEASUREMENTS} measurements per kit.")
+    ctx = _Context.of(kit)
+    found, errors, seen = [], [], set()
+    for n, row in enumerate(rows, start=2):
+        try:
+            if None in row:
+                raise ValueError("more fields than the header names")
+            m = _measurement(ctx, {k.strip(): v for k, v in row.items()})
+            if "\x00" in "".join(v for v in row.values() if isinstance(v, str)):
+                raise ValueError("a NUL character in the line")
+        except ValueError as exc:
+            errors.append({"row": n, "message": str(exc)})
+            continue
+        once = (m.measurement_point_id, m.measured_on, m.participant_id)
+        if once in seen:
+            errors.append({"row": n, "message": "a second measurement of this point that day"
+                           + (" by this lab" if m.participant_id else "")})  # fmt: skip
+        seen.add(once)
+        found.append(m)
+    if errors:
+        raise ValidationFailed(f"The measurements of {kit.name} have errors.",
+                               errors=errors[:100])  # fmt: skip
+    KitMeasurement.objects.filter(kit=kit).delete()
+    KitMeasurement.objects.bulk_create(found, batch_size=5000)
+    return len(found)
+
+
+def kit_linking_counts(kit: Kit) -> list[tuple[str, int]]:
+    """The linking laboratories that measured ``kit``: (code, number of measurements)."""
+    rows = (KitMeasurement.objects.filter(kit=kit, participant__isnull=False)
+            .values_list("participant__code").annotate(n=Count("pk"))
+            .order_by("participant__code"))  # fmt: skip
+    return [(code, n) for code, n in rows]
+
+
+@dataclass(frozen=True)
+class DriftRow:
+    """One point of a kit: the pilot's repeats, the model chosen and what it means for the
+    loop (the largest u_stab at a participant's slot, were the drift not corrected)."""
+
+    label: str
+    n: int
+    first: dt.date
+    last: dt.date
+    model: str
+    value: float
+    u_value: float
+    slope_per_day: float
+    u_slope: float
+    p_value: float
+    u_stab_max: float
+
+
+def _days(dates: Sequence[dt.date]) -> np.ndarray:
+    return np.array([d.toordinal() for d in dates], dtype=np.float64)
+
+
+def _series_values(series: list[KitMeasurement]) -> list[float]:
+    """A series' values on a line: a phase unwrapped about its circular mean (§14)."""
+    values = [m.value for m in series]
+    if not quantities.is_circular(series[0].measurement_point.quantity):
+        return values
+    centre = circular_mean(values, Groups.from_index(np.zeros(len(values), dtype=np.intp)))
+    return [float(v) for v in unwrap_about(values, centre.mean[0])]
+
+
+def kit_drift(kit: Kit) -> tuple[list[DriftRow], list[str]]:
+    """The drift of every point the pilot measured at least twice on two dates
+    (analysis.core.drift; u of a change over time = U/k of each repeat; a phase on its
+    values unwrapped about their circular mean, docs/domain.md §14), and notes for the
+    points it could not judge.  A linking laboratory's measurements are no repeats."""
+    rows = list(KitMeasurement.objects.filter(kit=kit, participant__isnull=True)
+                .select_related("measurement_point__device")
+                .order_by("measurement_point", "measured_on"))  # fmt: skip
+    by_point: dict[int, list[KitMeasurement]] = {}
+    for m in rows:
+        by_point.setdefault(m.measurement_point_id, []).append(m)
+    notes, usable = [], []
+    for series in by_point.values():
+        label = str(series[0].measurement_point)
+        if len({m.measured_on for m in series}) < 2:
+            notes.append(f"{label}: measured on one date only, no drift can be judged")
+        else:
+            usable.append(series)
+    if not usable:
+        return [], notes
+    flat = [m for series in usable for m in series]
+    groups = Groups.from_index(np.repeat(np.arange(len(usable)), [len(s) for s in usable]))
+    try:
+        u = [m.expanded_uncertainty / m.coverage_factor for m in flat]
+        days = _days([m.measured_on for m in flat])
+        values = [v for series in usable for v in _series_values(series)]
+        fit: DriftFit = drift_fit(days, values, groups, u)
+    except CoreInputError as exc:
+        raise ValidationFailed(str(exc)) from None
+    others = KitSlot.objects.filter(kit=kit).exclude(participant__is_reference=True)
+    mids = [s.starts_on + (s.ends_on - s.starts_on) / 2 for s in others]
+    return [_drift_row(fit, g, series, mids) for g, series in enumerate(usable)], notes
+
+
+def _drift_row(fit: DriftFit, g: int, series: list[KitMeasurement],
+               mids: list[dt.date]) -> DriftRow:  # fmt: skip
+    u_stab = fit.u_stab(np.full(len(mids), g), _days(mids)) if mids else np.zeros(1)
+    value = float(fit.value[g])
+    if quantities.is_circular(series[0].measurement_point.quantity):
+        value = float(wrap(value))
+    return DriftRow(
+        label=str(series[0].measurement_point), n=int(fit.n[g]),
+        first=series[0].measured_on, last=series[-1].measured_on, model=fit.model[g],
+        value=value, u_value=float(fit.u_value[g]), slope_per_day=float(fit.slope[g]),
+        u_slope=float(fit.u_slope[g]), p_value=float(fit.p_value[g]),
+        u_stab_max=float(u_stab.max()),
+    )  # fmt: skip
