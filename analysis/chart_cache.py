@@ -16,14 +16,14 @@ from typing import TypeVar
 
 from django.core.cache import cache
 
-from analysis import charts, standard_charts
+from analysis import charts, score_charts, standard_charts
 from analysis.models import AnalysisRun
 
 T = TypeVar("T")
 TIMEOUT = 7 * 24 * 3600  # seconds; entries of runs nobody reads any more fall out
 #: the drawing code's own digest: a deployment that changes how charts look gets new keys
 VERSION = hashlib.sha256(
-    b"".join(Path(str(m.__file__)).read_bytes() for m in (charts, standard_charts))
+    b"".join(Path(str(m.__file__)).read_bytes() for m in (charts, score_charts, standard_charts))
 ).hexdigest()[:12]
 
 

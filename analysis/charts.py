@@ -164,6 +164,22 @@ def point_figure(
 point_chart = svg_of(point_figure)
 
 
+def _note(title: str, text: str) -> Figure:
+    """A small figure that says, where a graph would stand, why there is none."""
+    fig = _figure(5.6, 1.6)
+    ax = fig.add_subplot()
+    ax.set_axis_off()
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, wrap=True)
+    ax.set_title(title)
+    return fig
+
+
+def _runs(groups: Sequence[str]) -> list[tuple[int, int]]:
+    """(start, end) of each run of equal neighbours in ``groups``, the end exclusive."""
+    starts = [i for i, g in enumerate(groups) if i == 0 or groups[i - 1] != g]
+    return list(zip(starts, [*starts[1:], len(groups)], strict=True))
+
+
 def _mark_own_tick(ax: Axes, labels: Sequence[str], highlight: str | None) -> None:
     for tick, label in zip(ax.get_xticklabels(), labels, strict=False):
         if label == highlight:

@@ -14,75 +14,49 @@ service and published by its publication job, so every laboratory has a history 
 with the linear-bench laboratory as pilot (docs/domain.md §15): one arrival was damaged,
 and the pilot's repeats show Kit B's MEMS 1 drifting (§13).  Everything is created
 idempotently: running the loader twice leaves the same rows.  A two-kit round of magnitude,
-phase and angular-rate points, ``IMU-2025-KITS``, is in coordination/demo_kits.py.
+phase and angular-rate points, ``IMU-2025-KITS``, is in coordination/demo_kits.py; the
+earlier round in coordination/demo_earlier.py, the kits in coordination/demo_circulation.py
+and the laboratories' results (and raw records) in coordination/demo_results.py.
 """
 
 from __future__ import annotations
 
-import csv
 import datetime as dt
-import math
 import secrets
 import zlib
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-import numpy as np
-from django.conf import settings
 from django.contrib.auth import get_user_model
 from django.contrib.auth.models import Group, Permission
 from django.db import transaction
 from django.utils import timezone
 
-from analysis.core.signals import synthetic
-from analysis.publication import active_publication, publication_start
-from analysis.services import analysis_run_execute, analysis_run_start
+from coordination.demo_circulation import round_kits
+from coordination.demo_earlier import PREVIOUS_CODE as PREVIOUS_CODE
+from coordination.demo_earlier import DemoLab, earlier_round
+from coordination.demo_kits import kits_round
+from coordination.demo_results import RAW_BIAS as RAW_BIAS
+from coordination.demo_results import (
+    demo_devices,
+    raw_records,
+    reproduction_results,
+    submit,
+    synthetic_results,
+)
 from labs.enrolment import enrolment_apply
-from labs.kits import (
-    SlotPlan,
-    circulation_set,
-    handover_dispatch,
-    handover_receive,
-    kit_create,
-    kit_measurements_replace,
-)
-from labs.models import (
-    Enrolment,
-    KitSlot,
-    Laboratory,
-    Membership,
-    Participant,
-    Result,
-    Submission,
-)
-from labs.raw_services import Upload, raw_record_upload
+from labs.models import Enrolment, Laboratory, Membership, Participant, Submission
 from labs.services import Scope, participants_invite
 from proficiency import protocols
-from proficiency.models import (
-    AssignedValueMethod,
-    Comparison,
-    ComparisonStatus,
-    Device,
-    Kit,
-    MeasurementPoint,
-    SigmaPtMode,
-)
-from proficiency.services import comparison_apply_template, measurement_points_generate
-
-if TYPE_CHECKING:
-    from analysis.core.signals.records import Record
+from proficiency.models import AssignedValueMethod, Comparison, ComparisonStatus, SigmaPtMode
+from proficiency.services import comparison_apply_template
 
 DEMO_CODE = "IMU-2024-DEMO"
-#: the published round before it: the laboratories' history (docs/domain.md §4.1)
-PREVIOUS_CODE = "IMU-2023-DEMO"
-#: whether ``load_demo`` makes that round: the tests turn it off unless they ask for it
-#: (tests/conftest.py; its publication renders 13 PDF reports, seconds per demo loaded)
+#: whether ``load_demo`` makes the published round before it, ``PREVIOUS_CODE``
+#: (coordination/demo_earlier.py, the laboratories' history, docs/domain.md §4.1): the tests
+#: turn it off unless they ask for it (tests/conftest.py; its publication renders 13 PDF
+#: reports, seconds per demo loaded)
 EARLIER_ROUND = True
-#: its points: two of the devices, the frequencies both benches share, tangential only
-PREVIOUS_DEVICES = (1, 2)
-PREVIOUS_FREQUENCIES = (5.0, 10.0)
-PREVIOUS_DIRECTIONS = ("vertical", "tangential")
 #: whether ``load_demo`` makes IMU-2025-KITS (coordination/demo_kits.py): the tests turn it
 #: off unless they ask for it (tests/conftest.py; its run costs a second per demo loaded)
 KITS_ROUND = True
@@ -94,8 +68,6 @@ CALL_DEADLINE = dt.timedelta(days=120)
 COORDINATORS_GROUP = "coordinators"
 #: the demo coordinator's name, as the reports print it ("Elena Conti, coordinator")
 DEMO_COORDINATOR_NAME = ("Elena", "Conti")
-NOMINAL = 418.0
-REFERENCE_DATA = Path(settings.BASE_DIR) / "docs" / "reference-data"  # published tables
 
 #: The synthetic laboratory (lab03, submitting by the API) that also has a manager account
 MANAGED_LAB = 3
@@ -115,81 +87,11 @@ SYNTHETIC_LABS = [
     ("Iberian Motion Metrology", "PT"),
 ]
 OUTLIER_LAB = "Outlier Metrology Services"
-RAW_DATA_LAB = "Alpine Vibration Metrology"  # attaches a linear and a curvilinear record
-RAW_SECONDS = 8.0  # synthetic records generated at load time: small (~80 kB + 160 kB)
-RAW_BIAS = 1.002  # the record's truth differs from the reported value by +0.2 %
-
-
-# Table 1 of Chiominto et al. 2024 as shipped with the specification; the copy
-# here is used only when the shared folder is absent (e.g. an installed wheel).
-def table1() -> dict[tuple[str, str, str], tuple[float, float]]:
-    """(bench, device, axis) -> (mean sensitivity, expanded uncertainty k=2) of Table 1."""
-    text = (REFERENCE_DATA / "chiominto2024_table1.csv").read_text(encoding="utf-8")
-    return {
-        (r["bench"], r["device"], r["axis"]): (
-            float(r["sensitivity"]),
-            float(r["expanded_uncertainty"]),
-        )
-        for r in csv.DictReader(text.splitlines())
-    }
-
-
-def _offsets(point: MeasurementPoint, mean: float) -> float:
-    """Deterministic per-point offset from the Table 1 mean; offsets sum to zero per bench.
-
-    Linear: −δ, 0, +δ over 5/10/20 Hz with δ = 0.3 %; curvilinear: tangential
-    −a, 0, +a (a = 0.2 %) and radial +b, 0, −b (b = 0.6 %) over 5/8/10 Hz, so the
-    radial results scatter more, as in the study.
-    """
-    rank = {5.0: 0, 10.0: 1, 20.0: 2} if point.bench == "linear" else {5.0: 0, 8.0: 1, 10.0: 2}
-    sign = rank[point.frequency_hz] - 1
-    rel = {"vertical": 0.003, "tangential": 0.002, "radial": -0.006}[point.direction]
-    return sign * rel * mean
-
-
-def reproduction_results(
-    points: list[MeasurementPoint], bench: str
-) -> list[tuple[MeasurementPoint, float, float]]:
-    """Results of one bench lab that aggregate (docs/domain.md §3) exactly to Table 1.
-
-    Within each (device, axis) the offsets have mean zero, so x̄ is the Table 1
-    value; every result gets the same u_i = √(u_T1² − s²), so that
-    √(ū² + s²) = u_T1 = U/2.
-    """
-    t1 = table1()
-    by_cell: dict[tuple[str, str], list[MeasurementPoint]] = {}
-    for p in points:
-        if p.bench == bench:
-            by_cell.setdefault((p.device.name, p.axis), []).append(p)
-    out = []
-    for (device, axis), cell in by_cell.items():
-        mean, expanded = t1[(bench, device, axis)]
-        values = np.array([mean + _offsets(p, mean) for p in cell])
-        s = float(np.std(values, ddof=1))
-        u_single = math.sqrt((expanded / 2) ** 2 - s**2)
-        out += [(p, float(v), 2 * u_single) for p, v in zip(cell, values, strict=True)]
-    return out
-
-
-def synthetic_results(
-    points: list[MeasurementPoint], lab_index: int, outlier: bool, seed: int = 20240
-) -> list[tuple[MeasurementPoint, float, float]]:
-    """Plausible results: the two benches' mean as truth, lab bias ~0.4 %, noise ~0.25 %
-    (``seed``: one per round, so each round draws its own)."""
-    t1 = table1()
-    rng = np.random.default_rng(seed + lab_index)
-    bias = rng.normal(0.0, 0.004)
-    rel_u = rng.uniform(0.006, 0.012)  # standard uncertainty 0.6–1.2 %
-    out = []
-    for p in points:
-        truth = 0.5 * (
-            t1[("linear", p.device.name, p.axis)][0] + t1[("curvilinear", p.device.name, p.axis)][0]
-        )
-        value = truth * (1 + bias + rng.normal(0.0, 0.0025))
-        if outlier and p.device.name == "MEMS 2":
-            value *= 1.06
-        out.append((p, round(value, 2), round(2 * rel_u * value, 2)))
-    return out
+#: attaches a linear and a curvilinear record whose truth is its result × ``RAW_BIAS``
+RAW_DATA_LAB = "Alpine Vibration Metrology"
+#: the demo round's two kits: (name, serial prefix, drift of the pilot's MEMS 1 repeats per day)
+DEMO_KITS = (("Kit A", "A", 0.0), ("Kit B", "B", 0.012))
+KITS = DEMO_KITS  # the tests' demo keeps its kits still (tests/conftest.py)
 
 
 @dataclass
@@ -206,7 +108,7 @@ class DemoSummary:
 def load_demo(*, password: str | None = None) -> DemoSummary:
     """Create the demo comparison, labs, users and results; idempotent."""
     comparison = _comparison()
-    devices = _devices(comparison, (1, 2, 3))
+    devices = demo_devices(comparison, (1, 2, 3))
     if not comparison.measurement_points.exists():
         comparison_apply_template(
             comparison=comparison, template_key="linear_and_curvilinear", devices=devices
@@ -226,14 +128,14 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
     if not admin.is_superuser:
         admin.is_superuser = True
         admin.save(update_fields=["is_superuser"])
-    labs: list[tuple[Laboratory, Scope | None, bool]] = []  # (lab, scope, outlier)
+    labs: list[DemoLab] = []
     for name, country, username in (LINEAR_LAB, CURVILINEAR_LAB):
         bench = "linear" if username == "linear-lab" else "curvilinear"
         # each bench laboratory measures its own bench only (docs/domain.md §10)
         scope = Scope(benches=[bench])
         participant = _lab(summary, comparison, name, country, username, password, scope)
         labs.append((participant.laboratory, scope, False))
-        _submit(participant, reproduction_results(points, bench), Submission.Source.FILE)
+        submit(participant, reproduction_results(points, bench), Submission.Source.FILE)
         if bench == "curvilinear":  # its software applies to the open call (below)
             curvilinear_lab = participant.laboratory
     for i, (name, country) in enumerate(SYNTHETIC_LABS, start=3):
@@ -248,166 +150,16 @@ def load_demo(*, password: str | None = None) -> DemoSummary:
             # ... and applies to the round whose call is open (below)
             applicant = (participant.laboratory, manager)
         rows = synthetic_results(points, i, outlier=name == OUTLIER_LAB)
-        _submit(participant, rows, Submission.Source.API if i % 2 else Submission.Source.WEB)
+        submit(participant, rows, Submission.Source.API if i % 2 else Submission.Source.WEB)
         if name == RAW_DATA_LAB:
-            _raw_records(participant)
+            raw_records(participant)
     summary.call = _call(coordinator, *applicant, curvilinear_lab)
-    _kits(comparison)
+    round_kits(comparison, KITS, pilot_lab=LINEAR_LAB[0])
     if EARLIER_ROUND:
-        summary.previous = _previous(coordinator, labs)
-    if KITS_ROUND:  # imported here: demo_kits reads this module's laboratories
-        from coordination.demo_kits import kits_round
-
+        summary.previous = earlier_round(coordinator, labs)
+    if KITS_ROUND:
         summary.kits_round = kits_round(coordinator)
     return summary
-
-
-#: the demo's two kits: (name, serial prefix, drift of the pilot's MEMS 1 repeats per day)
-DEMO_KITS = (("Kit A", "A", 0.0), ("Kit B", "B", 0.012))
-KITS = DEMO_KITS  # the tests' demo keeps its kits still (tests/conftest.py)
-
-
-def _kits(comparison: Comparison) -> None:
-    """Two kits circulated in two loops in the first half of 2024, the linear-bench
-    laboratory as pilot before, between and after (docs/domain.md §15): every hand-over
-    logged, one arrival damaged, and the pilot's repeats of MEMS 1 on the linear bench
-    showing Kit B drifting (§13). Made once; a demo that has kits keeps them."""
-    if comparison.kits.exists():
-        return
-    participants = list(comparison.participants.select_related("laboratory").order_by("code"))
-    pilot = next(p for p in participants if p.laboratory.name == LINEAR_LAB[0])
-    others = [p for p in participants if p != pilot]
-    devices = list(comparison.devices.order_by("name"))
-    points = list(comparison.measurement_points.filter(bench="linear")
-                  .select_related("device").order_by("pk"))  # fmt: skip
-    for index, (name, prefix, drift) in enumerate(KITS):
-        serials = {d: f"{prefix}-{i:03d}" for i, d in enumerate(devices, 1)}
-        kit = kit_create(comparison_id=comparison.pk, name=name, serials=serials)
-        day = dt.date(2024, 1, 8)
-        plan = [SlotPlan(pilot, day, day + dt.timedelta(days=4))]
-        loop = others[index::2]
-        for i, p in enumerate(loop):
-            day += dt.timedelta(days=14)
-            plan.append(SlotPlan(p, day, day + dt.timedelta(days=10)))
-            if i % 2 == 1 and i < len(loop) - 1:  # the pilot again, every two laboratories
-                day += dt.timedelta(days=14)
-                plan.append(SlotPlan(pilot, day, day + dt.timedelta(days=4)))
-        day += dt.timedelta(days=14)
-        plan.append(SlotPlan(pilot, day, day + dt.timedelta(days=4)))
-        slots = circulation_set(kit=kit, plan=plan)
-        _circulate(kit, slots, damaged=index == 1)
-        _pilot_repeats(kit, points, [s for s in slots if s.participant_id == pilot.pk], drift,
-                       _own_values(pilot))  # fmt: skip
-
-
-def _circulate(kit: Kit, slots: list[KitSlot], *, damaged: bool) -> None:
-    """Every hand-over of a finished loop: each holder received the kit two days into its
-    slot and sent it on at its end; in a damaged loop the fourth holder found MEMS 2's
-    connector bent."""
-
-    def noon(day: dt.date) -> dt.datetime:
-        return dt.datetime.combine(day, dt.time(12), tzinfo=dt.UTC)
-
-    sent = handover_dispatch(kit=kit, from_slot=None, user=None, carrier_note="courier",
-                             at=noon(slots[0].starts_on - dt.timedelta(days=2)))  # fmt: skip
-    for i, slot in enumerate(slots):
-        broken = damaged and i == 3
-        handover_receive(handover=sent, user=None, condition="damaged" if broken else "good",
-                         note="MEMS 2: connector bent in transport" if broken else "",
-                         at=noon(slot.starts_on))  # fmt: skip
-        sent = handover_dispatch(kit=kit, from_slot=slot, user=None, carrier_note="courier",
-                                 at=noon(slot.ends_on))  # fmt: skip
-    handover_receive(handover=sent, user=None, condition="good",
-                     at=noon(slots[-1].ends_on + dt.timedelta(days=2)))  # fmt: skip
-
-
-def _own_values(participant: Participant) -> dict[int, float]:
-    """The participant's accepted results by point id."""
-    rows = Result.objects.filter(submission__participant=participant,
-                                 submission__status=Submission.Status.ACCEPTED)  # fmt: skip
-    return dict(rows.values_list("measurement_point_id", "value"))
-
-
-def _pilot_repeats(kit: Kit, points: list[MeasurementPoint], slots: list[KitSlot],
-                   drift: float, own: dict[int, float]) -> None:  # fmt: skip
-    """The pilot's measurement of each linear-bench point in each of its slots: its own
-    result there (the nominal value where it has none) with a small scatter, plus, on MEMS
-    1, ``drift`` per day since the first slot (Kit B's MEMS 1 ages)."""
-    rng = np.random.default_rng(zlib.crc32(kit.name.encode()))
-    first = slots[0].starts_on
-    lines = ["device,axis,frequency_hz,bench,direction,amplitude_m_s2,measured_on,"
-             "sensitivity,expanded_uncertainty"]  # fmt: skip
-    for p in points:
-        amplitude = "" if p.amplitude_m_s2 is None else repr(p.amplitude_m_s2)
-        rate = drift if p.device.name == "MEMS 1" else 0.0
-        for slot in slots:
-            base = own.get(p.pk, NOMINAL + 1.5)
-            value = base + rate * (slot.starts_on - first).days + rng.normal(0, 0.03)
-            lines.append(f"{p.device.name},{p.axis},{p.frequency_hz!r},{p.bench},{p.direction},"
-                         f"{amplitude},{slot.starts_on},{value:.4f},0.08")  # fmt: skip
-    kit_measurements_replace(kit=kit, text="\n".join(lines))
-
-
-def _previous(coordinator: Any, labs: list[tuple[Laboratory, Scope | None, bool]]) -> Comparison:
-    """The round a year before: created closed with every laboratory's accepted results,
-    analysed by a run of the service (executed here, as a worker would: the task sent after
-    commit finds it done), then its publication asked for as the Publish button asks: the
-    job's task, sent after commit, renders the final reports and publishes (at once with
-    the quick start's eager Celery, in the background with a worker; a test's transaction
-    never commits, so there the round stays analysed with its publication pending until a
-    test executes it).  A round published, or being published, is left as it is."""
-    previous, created = Comparison.objects.get_or_create(
-        code=PREVIOUS_CODE,
-        defaults={
-            "title": "MEMS accelerometer sensitivity, first round (demo, published)",
-            "description": (
-                "The round before IMU-2024-DEMO: two LSM6DSR accelerometers on the linear bench "
-                "and on the curvilinear bench (tangential) at 5 and 10 Hz."
-            ),
-            "protocol": "linear_and_curvilinear",
-            "status": ComparisonStatus.CLOSED,
-            "submission_deadline": dt.datetime(2023, 6, 30, 23, 59, tzinfo=dt.UTC),
-            "assigned_value_method": AssignedValueMethod.NOMINAL,
-            "sigma_pt_mode": SigmaPtMode.RELATIVE,
-            "sigma_pt_value": 1.0,
-            "authorised_by_name": "Demo Quality Manager",
-            "authorised_by_role": "Quality manager of the PT provider (demonstration)",
-        },
-    )
-    previous.coordinators.add(coordinator)
-    if created:
-        _previous_results(previous, labs)
-    if previous.status == ComparisonStatus.CLOSED:
-        run = analysis_run_start(comparison=previous, user=coordinator)
-        analysis_run_execute(run_id=run.pk)
-        previous.refresh_from_db()
-    if previous.status == ComparisonStatus.ANALYSED and active_publication(previous) is None:
-        publication_start(comparison=previous, user=coordinator)
-    return previous
-
-
-def _previous_results(
-    previous: Comparison, labs: list[tuple[Laboratory, Scope | None, bool]]
-) -> None:
-    devices = _devices(previous, PREVIOUS_DEVICES, serial="LSM6DSR-2023")
-    for plan in protocols.TEMPLATES["linear_and_curvilinear"].benches:
-        measurement_points_generate(
-            comparison=previous, devices=devices, axes=protocols.AXES,
-            frequencies_hz=[f for f in plan.frequencies_hz if f in PREVIOUS_FREQUENCIES],
-            benches=[plan.bench],
-            directions=[d for d in plan.directions if d in PREVIOUS_DIRECTIONS],
-            amplitudes=plan.amplitudes,
-        )  # fmt: skip
-    points = list(previous.measurement_points.select_related("device"))
-    submitted = dt.datetime(2023, 6, 15, 12, 0, tzinfo=dt.UTC)
-    for i, (lab, scope, outlier) in enumerate(labs, start=1):
-        (participant,) = participants_invite(
-            comparison=previous, laboratories=[lab], scope=scope, notify=False
-        )
-        benches = scope.benches if scope is not None else None
-        mine = [p for p in points if not benches or p.bench in benches]
-        rows = synthetic_results(mine, i, outlier, seed=20230)
-        _submit(participant, rows, Submission.Source.FILE, submitted)
 
 
 def _call(
@@ -438,7 +190,7 @@ def _call(
         },
     )
     call.coordinators.add(coordinator)
-    devices = _devices(call, (1,), serial="LSM6DSR-CALL")
+    devices = demo_devices(call, (1,), serial="LSM6DSR-CALL")
     if not call.measurement_points.exists():
         comparison_apply_template(
             comparison=call, template_key="linear_and_curvilinear", devices=devices
@@ -480,26 +232,6 @@ def _comparison() -> Comparison:
         },
     )
     return comparison
-
-
-def _devices(
-    comparison: Comparison, numbers: tuple[int, ...], serial: str = "LSM6DSR-DEMO"
-) -> list[Device]:
-    return [
-        Device.objects.get_or_create(
-            comparison=comparison,
-            name=f"MEMS {i}",
-            defaults={
-                "model": "LSM6DSR",
-                "serial": f"{serial}-{i:03d}",
-                "nominal_sensitivity": NOMINAL,
-                "tolerance": 1.0,
-                "tolerance_relative": True,
-                "tolerance_distribution": "rectangular",
-            },
-        )[0]
-        for i in numbers
-    ]
 
 
 def _coordinators_group() -> Group:
@@ -555,73 +287,3 @@ def _lab(
         comparison=comparison, laboratories=[lab], scope=scope, notify=False
     )
     return participant
-
-
-def _submit(
-    participant: Participant,
-    rows: list[tuple[MeasurementPoint, float, float]],
-    source: str,
-    submitted: dt.datetime = dt.datetime(2024, 6, 15, 12, 0, tzinfo=dt.UTC),
-) -> None:
-    if participant.submissions.exists():
-        return
-    submission = Submission.objects.create(
-        participant=participant,
-        version=1,
-        status=Submission.Status.ACCEPTED,
-        source=source,
-        submitted_at=submitted,
-        decided_at=submitted + dt.timedelta(days=16, hours=-3),
-    )
-    Result.objects.bulk_create(
-        Result(
-            submission=submission,
-            measurement_point=point,
-            value=value,
-            unit=point.device.unit,
-            expanded_uncertainty=expanded,
-            coverage_factor=2.0,
-        )
-        for point, value, expanded in rows
-    )
-
-
-def _raw_records(participant: Participant) -> None:
-    """A synthetic linear (int16 + sidecar) and curvilinear (int16 + encoder CSV) record
-    behind MEMS 1, X, 10 Hz, whose truth is the reported value × ``RAW_BIAS``; recomputed
-    by the Celery task after the loader's transaction commits."""
-    if participant.raw_records.exists():
-        return
-    submission = participant.submissions.get(version=1)
-    for bench, direction in (("linear", "vertical"), ("curvilinear", "tangential")):
-        result = submission.results.select_related("measurement_point__device").get(
-            measurement_point__device__name="MEMS 1", measurement_point__axis="X",
-            measurement_point__frequency_hz=10.0, measurement_point__bench=bench,
-            measurement_point__direction=direction,
-        )  # fmt: skip
-        p = result.measurement_point
-        truth = (result.value * RAW_BIAS, 419.0, 424.0)
-        imp = synthetic.Imperfections(noise_digits=1.5, quantise=True, seed=11)
-        point = p.key._asdict()
-        if bench == "linear":
-            mems = synthetic.linear_record(truth, duration=RAW_SECONDS, imp=imp)
-            reference = None
-        else:
-            mems, enc = synthetic.curvilinear_records(truth, duration=RAW_SECONDS, imp=imp)
-            reference = Upload(_csv(enc), "demo-encoder.csv", {"fs_hz": enc.meta["fs_hz"]})
-        data = Upload(_int16(mems), f"demo-{bench}.bin", _plain(mems.meta))
-        raw_record_upload(participant=participant, point_fields=point, data=data,
-                          reference=reference)  # fmt: skip
-
-
-def _int16(record: Record) -> bytes:
-    return np.ascontiguousarray(record.data.T).astype("<i2").tobytes()
-
-
-def _csv(record: Record) -> bytes:
-    rows = [",".join(record.channels)] + [f"{v:.9g}" for v in record.data[0]]
-    return ("\n".join(rows) + "\n").encode()
-
-
-def _plain(meta: dict) -> dict:
-    return {k: list(v) if isinstance(v, tuple) else v for k, v in meta.items()}

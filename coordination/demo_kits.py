@@ -26,16 +26,16 @@ from typing import Any
 import numpy as np
 
 from analysis.services import analysis_run_execute, analysis_run_start
-from common.quantities import ANGULAR_RATE, MAGNITUDE, PHASE, point_unit
+from common.quantities import ANGULAR_RATE, MAGNITUDE, PHASE
+from coordination.demo_circulation import circulate
+from coordination.demo_results import submit
 from labs.kits import (
     SlotPlan,
     circulation_set,
-    handover_dispatch,
-    handover_receive,
     kit_create,
     kit_measurements_replace,
 )
-from labs.models import KitSlot, Laboratory, Participant, Result, Submission
+from labs.models import Laboratory, Participant, Submission
 from labs.services import Scope, participants_invite
 from proficiency import protocols
 from proficiency.models import (
@@ -71,6 +71,8 @@ LOOPS = {
 KIT_STARTS = {"Kit A": dt.date(2025, 2, 3), "Kit B": dt.date(2025, 2, 10)}
 #: Kit B is sent back to the pilot for its last slot and its arrival is not logged yet
 IN_TRANSIT = "Kit B"
+#: when every laboratory's results were submitted
+SUBMITTED = dt.datetime(2025, 9, 15, 12, 0, tzinfo=dt.UTC)
 
 
 @dataclass(frozen=True)
@@ -108,7 +110,8 @@ def kits_round(coordinator: Any) -> Comparison:
     participants = _participants(comparison)
     turns = _kits(comparison, participants)
     for name, participant in participants.items():
-        _submit(participant, _results(points, name, turns[name]))
+        submit(participant, _results(points, name, turns[name]), Submission.Source.FILE,
+               SUBMITTED, decided_after=dt.timedelta(days=5))  # fmt: skip
     run = analysis_run_start(comparison=comparison, user=coordinator)
     analysis_run_execute(run_id=run.pk)
     comparison.refresh_from_db()
@@ -170,29 +173,9 @@ def _kits(comparison: Comparison, participants: dict[str, Participant]) -> dict[
         for name, slot in zip(names, slots, strict=True):
             middle = (slot.starts_on - start).days + (slot.ends_on - slot.starts_on).days / 2
             turns[name].append(Turn(kit_name, middle))
-        _circulate(kit, slots, pending=len(slots) if kit_name == IN_TRANSIT else None)
+        circulate(kit, slots, pending=len(slots) if kit_name == IN_TRANSIT else None)
         _pilot_repeats(kit, turns[PILOT], start)
     return turns
-
-
-def _noon(day: dt.date) -> dt.datetime:
-    return dt.datetime.combine(day, dt.time(12), tzinfo=dt.UTC)
-
-
-def _circulate(kit: Kit, slots: list[KitSlot], pending: int | None) -> None:
-    """The hand-overs of the loop, each holder receiving the kit on its slot's first day and
-    sending it on at its end, and the kit's return; up to slot ``pending`` (1-based), sent
-    and not logged as received, where one is given."""
-    sent = handover_dispatch(kit=kit, from_slot=None, user=None, carrier_note="courier",
-                             at=_noon(slots[0].starts_on - dt.timedelta(days=2)))  # fmt: skip
-    for i, slot in enumerate(slots, 1):
-        if i == pending:
-            return
-        handover_receive(handover=sent, user=None, condition="good", at=_noon(slot.starts_on))
-        sent = handover_dispatch(kit=kit, from_slot=slot, user=None, carrier_note="courier",
-                                 at=_noon(slot.ends_on))  # fmt: skip
-    handover_receive(handover=sent, user=None, condition="good",
-                     at=_noon(slots[-1].ends_on + dt.timedelta(days=2)))  # fmt: skip
 
 
 def _truth(point: MeasurementPoint, kit: str, day: float) -> float:
@@ -267,19 +250,3 @@ def _pilot_repeats(kit: Kit, turns: list[Turn], start: dt.date) -> None:
             lines.append(f"{p.device.name},{p.axis},{p.frequency_hz!r},{p.bench},{p.direction},"
                          f"{amplitude},{p.quantity},{day},{value:.4f},{u}")  # fmt: skip
     kit_measurements_replace(kit=kit, text="\n".join(lines))
-
-
-def _submit(participant: Participant,
-            rows: list[tuple[MeasurementPoint, float, float]]) -> None:  # fmt: skip
-    submitted = dt.datetime(2025, 9, 15, 12, 0, tzinfo=dt.UTC)
-    submission = Submission.objects.create(
-        participant=participant, version=1, status=Submission.Status.ACCEPTED,
-        source=Submission.Source.FILE, submitted_at=submitted,
-        decided_at=submitted + dt.timedelta(days=5),
-    )  # fmt: skip
-    Result.objects.bulk_create(
-        Result(submission=submission, measurement_point=p, value=value,
-               unit=point_unit(p.quantity, p.device.unit), expanded_uncertainty=u,
-               coverage_factor=2.0)
-        for p, value, u in rows
-    )  # fmt: skip

@@ -1,27 +1,17 @@
 """Coordinator API: runs, scores, compatibility, publication, review — per persona."""
 
-from io import StringIO
-
 import pytest
 from django.contrib.auth import get_user_model
 from django.core import mail
-from django.core.management import call_command
 from rest_framework.test import APIClient
 
 from analysis.models import AnalysisRun
 from labs.models import Laboratory, Participant, Submission
 from labs.services import api_key_create
-from proficiency.models import Comparison
 from tests.factories import ComparisonFactory, UserFactory
 
 pytestmark = pytest.mark.django_db(transaction=True)
 CODE = "IMU-2024-DEMO"
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code=CODE)
 
 
 def client_for(user=None, key=None):

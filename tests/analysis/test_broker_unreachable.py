@@ -9,10 +9,8 @@ connection; tests/faults/test_broker_down.py cuts a real one."""
 
 import datetime as dt
 import logging
-from io import StringIO
 
 import pytest
-from django.core.management import call_command
 from django.utils import timezone
 from kombu.exceptions import OperationalError
 
@@ -23,18 +21,11 @@ from analysis.reports.services import reports_missing, reports_pending_enqueue
 from analysis.services import analysis_run_start, analysis_sweep
 from common import jobs
 from labs.models import Notice
-from proficiency.models import Comparison
 from tests.analysis.reports.conftest import published_missing_reports
 
 pytestmark = pytest.mark.django_db(transaction=True)
 REFUSED = "Error 111 connecting to 127.0.0.1:6399. Connection refused."
 NOTHING = {"runs": 0, "chunks": 0, "finish": 0}
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code="IMU-2024-DEMO")
 
 
 def broker_down(monkeypatch, task_path: str) -> list[tuple]:

@@ -29,11 +29,10 @@ C = f"/coordinator/{CODE}/"
 
 
 @pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    comparison = Comparison.objects.get(code=CODE)
-    _add_repeats(comparison)
-    return comparison
+def demo(demo):
+    """The demo round (tests/analysis/conftest.py) with repeat data added."""
+    _add_repeats(demo)
+    return demo
 
 
 def _point_results(comparison, n):

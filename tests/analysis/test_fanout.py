@@ -2,11 +2,9 @@
 same stored numbers as the single-task path (eager Celery; SQLite or PostgreSQL)."""
 
 import resource
-from io import StringIO
 
 import numpy as np
 import pytest
-from django.core.management import call_command
 from django.db import connection
 
 from analysis import outputs, services, tasks
@@ -20,12 +18,6 @@ from analysis.services import (
 from proficiency.models import Comparison
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code="IMU-2024-DEMO")
 
 
 def stored(run):

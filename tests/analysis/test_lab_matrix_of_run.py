@@ -3,10 +3,8 @@ results the run scored, so a version accepted after the run (or after publicatio
 not change what the run's pages and API show (docs/domain.md §6)."""
 
 import math
-from io import StringIO
 
 import pytest
-from django.core.management import call_command
 from django.utils import timezone
 from rest_framework.test import APIClient
 
@@ -14,16 +12,9 @@ from analysis.selectors import lab_matrices
 from analysis.services import analysis_run_start
 from labs.models import Result, Submission
 from labs.selectors import current_submissions
-from proficiency.models import Comparison
 
 pytestmark = pytest.mark.django_db(transaction=True)
 POINT = {"device": "MEMS 2", "axis": "X", "frequency_hz": "5", "bench": "linear"}
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code="IMU-2024-DEMO")
 
 
 def accept_new_version(submission: Submission, point_id: int, shift: float) -> Submission:

@@ -112,12 +112,6 @@ def test_labels_of_the_methods():
 # --- service runs ---------------------------------------------------------------------
 
 
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code="IMU-2024-DEMO")
-
-
 def offline(demo, tmp_path: Path, method: str) -> dict:
     export = tmp_path / "demo.csv"
     call_command("export_results", demo.code, "--output", str(export), stderr=StringIO())

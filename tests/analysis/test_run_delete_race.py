@@ -11,10 +11,8 @@ chunks first); with it, every deletion path waits for the chunk before deleting 
 import threading
 import time
 from collections.abc import Callable
-from io import StringIO
 
 import pytest
-from django.core.management import call_command
 from django.db import connection, connections, transaction
 
 from analysis import services
@@ -25,7 +23,6 @@ from analysis.models import (
     Score,
 )
 from analysis.services import analysis_chunk_execute
-from proficiency.models import Comparison
 from tests.analysis.test_fanout import started
 
 pytestmark = [
@@ -34,12 +31,6 @@ pytestmark = [
         connection.vendor != "postgresql", reason="row locks between two connections"
     ),
 ]
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code="IMU-2024-DEMO")
 
 
 def in_thread(target: Callable[[], object], out: dict, key: str) -> threading.Thread:

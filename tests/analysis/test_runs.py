@@ -17,12 +17,6 @@ from proficiency.models import Comparison
 pytestmark = pytest.mark.django_db(transaction=True)
 
 
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code="IMU-2024-DEMO")
-
-
 def outputs(run):
     return (
         sorted(AssignedValue.objects.filter(run=run).values_list(

@@ -1,28 +1,18 @@
 """Cancelling an analysis run (API and run page): only the round's coordinators, the run
 keeps no outputs, its queued tasks store nothing, and a new run can be started at once."""
 
-from io import StringIO
-
 import pytest
 from django.contrib.auth import get_user_model
 from django.contrib.auth.models import User
-from django.core.management import call_command
 from rest_framework.test import APIClient
 
 from analysis import services
 from analysis.models import AnalysisChunk, AnalysisRun, AssignedValue, Score
 from analysis.services import analysis_chunk_execute, analysis_run_execute
-from proficiency.models import Comparison
 from tests.factories import ComparisonFactory, UserFactory
 
 pytestmark = pytest.mark.django_db(transaction=True)
 CODE = "IMU-2024-DEMO"
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code=CODE)
 
 
 def user(name):

@@ -18,16 +18,9 @@ from analysis.reports.render import render_report
 from analysis.services import analysis_run_start
 from common.sizes import counted
 from labs.models import Participant, Result
-from proficiency.models import Comparison
 from tests.analysis.reports.conftest import pdf_text
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code="IMU-2024-DEMO")
 
 
 def accepted(demo):

@@ -3,10 +3,7 @@ the database as old data or another path could: the run fails cleanly, naming th
 participant and the measurement point, and stores none of its outputs (never a database
 error: PostgreSQL refuses NaN and Infinity in JSON)."""
 
-from io import StringIO
-
 import pytest
-from django.core.management import call_command
 
 from analysis.models import AnalysisChunk, AnalysisRun, AssignedValue, CompatibilityMatrix, Score
 from analysis.selectors import current_run
@@ -15,12 +12,6 @@ from labs.models import Result
 from proficiency.models import Comparison
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code="IMU-2024-DEMO")
 
 
 def corrupt(demo, nth: int, **values) -> Result:

@@ -2,11 +2,8 @@
 there and the run succeeds; without one the run fails naming the point
 (docs/domain.md §5.7)."""
 
-from io import StringIO
-
 import numpy as np
 import pytest
-from django.core.management import call_command
 
 from analysis.core.groups import Groups
 from analysis.core.robust import DegenerateScaleError, sigma_pt_robust
@@ -28,14 +25,13 @@ def test_core_gives_nan_where_a_zero_s_star_is_not_needed():
 
 
 @pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    comparison = Comparison.objects.get(code="IMU-2024-DEMO")
-    Comparison.objects.filter(pk=comparison.pk).update(
+def demo(demo):
+    """The demo round (tests/analysis/conftest.py) with Algorithm A and a robust σ_pt."""
+    Comparison.objects.filter(pk=demo.pk).update(
         assigned_value_method="algorithm_a", sigma_pt_mode="robust", sigma_pt_value=None
     )
-    comparison.refresh_from_db()
-    return comparison
+    demo.refresh_from_db()
+    return demo
 
 
 def sigmas(run) -> dict[int, float | None]:

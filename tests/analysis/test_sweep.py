@@ -9,17 +9,14 @@ final step was lost, is completed.  Every sweep is idempotent."""
 import datetime as dt
 import threading
 import time
-from io import StringIO
 
 import pytest
-from django.core.management import call_command
 from django.db import connection
 from django.utils import timezone
 
 from analysis import services
 from analysis.models import AnalysisChunk, AnalysisRun, Score
 from analysis.services import analysis_chunk_execute, analysis_run_execute, analysis_sweep
-from proficiency.models import Comparison
 from tests.analysis.test_fanout import run_with, started, stored
 from tests.analysis.test_run_delete_race import chunk_paused_before_commit
 
@@ -28,12 +25,6 @@ pytestmark = [
     pytest.mark.skipif(connection.vendor != "postgresql", reason="heartbeats: PostgreSQL"),
 ]
 NOTHING = {"runs": 0, "chunks": 0, "finish": 0}
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code="IMU-2024-DEMO")
 
 
 @pytest.fixture

@@ -2,15 +2,12 @@
 uploads of the same laboratory at once give two consecutive versions, none lost, or one
 version when they are the same results (a retry)."""
 
-import threading
 from collections.abc import Callable
 from io import StringIO
-from typing import Any
 
 import pytest
 from django.contrib.auth import get_user_model
 from django.core.management import call_command
-from django.db import connection
 from rest_framework.test import APIClient
 
 from analysis.models import AnalysisRun, Score
@@ -18,35 +15,12 @@ from labs.models import Result
 from labs.selectors import current_submissions
 from labs.services import submission_from_file
 from proficiency.models import Comparison
+from tests.concurrency import at_once
 from tests.faults.conftest import wait_until
 from tests.labs.test_upload_files import csv_file, grid, records  # noqa: F401
 
 pytestmark = [pytest.mark.services, pytest.mark.django_db(transaction=True)]
 CODE = "IMU-2024-DEMO"
-
-
-def at_once(*calls: Callable[[], object]) -> list[Any]:
-    """Run ``calls`` in threads released together (each thread has its own connection).
-
-    Their answers, or the exceptions they raised (the tests check for those)."""
-    barrier = threading.Barrier(len(calls))
-    out: list[Any] = [None] * len(calls)
-
-    def body(i: int) -> None:
-        try:
-            barrier.wait(10)
-            out[i] = calls[i]()
-        except BaseException as exc:  # reported by the test, not lost in the thread
-            out[i] = exc
-        finally:
-            connection.close()
-
-    threads = [threading.Thread(target=body, args=(i,)) for i in range(len(calls))]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(60)
-    return out
 
 
 @pytest.mark.real_worker

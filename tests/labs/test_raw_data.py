@@ -11,22 +11,26 @@ from django.core.files.uploadedfile import SimpleUploadedFile
 
 from analysis.core.signals.sinefit import fit_known_frequency
 from common.errors import ValidationFailed
-from labs.models import Membership, Participant, RawFile, RawRecomputation, RawRecord
+from labs.models import Participant, RawFile, RawRecomputation, RawRecord
 from labs.raw import PLOT_HARMONICS, _model
 from labs.raw_services import en_number, raw_recompute_execute, raw_upload_submit
 from proficiency.models import MeasurementPoint
-from proficiency.services import measurement_points_generate
 from tests.factories import (
     ComparisonFactory,
-    DeviceFactory,
     LaboratoryFactory,
     MembershipFactory,
-    ParticipantFactory,
-    ResultFactory,
-    SubmissionFactory,
     UserFactory,
 )
-from tests.labs.raw_data_helpers import TRUTH, int16_bytes, linear, sidecar
+from tests.labs.raw_data_helpers import (
+    TRUTH,
+    int16_bytes,
+    linear,
+    raw_round,
+    reporting,
+    sidecar,
+    staff,
+    upload_fields,
+)
 
 pytestmark = pytest.mark.django_db
 CODE = "RAW-WEB"
@@ -40,36 +44,23 @@ def world():
         LaboratoryFactory.create(name="Bravo"),
     )
     users = {
-        "a": MembershipFactory.create(laboratory=lab_a, role=Membership.Role.STAFF).user,
+        "a": staff(lab_a),
         "b": MembershipFactory.create(laboratory=lab_b).user,
         "coord": UserFactory.create(username="coord-web"),
         "coord2": UserFactory.create(username="coord-other"),
     }
-    comparison = ComparisonFactory.create(code=CODE, status="closed", protocol="custom")
+    grid = {"axes": ["X"], "frequencies_hz": [10], "benches": ["linear"]}
+    comparison, points = raw_round(CODE, "MEMS 1", grid)
     comparison.coordinators.add(users["coord"])
     ComparisonFactory.create(code="OTHER").coordinators.add(users["coord2"])
-    device = DeviceFactory.create(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
-    measurement_points_generate(
-        comparison=comparison, devices=[device], axes=["X"], frequencies_hz=[10],
-        benches=["linear"],
-    )  # fmt: skip
     for lab, code in ((lab_a, "W11"), (lab_b, "W22")):
-        part = ParticipantFactory.create(comparison=comparison, laboratory=lab, code=code)
-        sub = SubmissionFactory.create(participant=part, version=1, status="accepted")
-        for p in comparison.measurement_points.all():
-            ResultFactory.create(submission=sub, measurement_point=p, value=REPORTED,
-                          expanded_uncertainty=REPORTED_U, coverage_factor=2.0)  # fmt: skip
+        reporting(comparison, lab, code, points, (REPORTED, REPORTED_U))
     return users
 
 
 def upload(client, record, **extra):
     point = MeasurementPoint.objects.get(comparison__code=CODE)
-    data = {
-        "point": point.pk,
-        "file": SimpleUploadedFile("run1.bin", int16_bytes(record)),
-        "sidecar": SimpleUploadedFile("run1.bin.json", sidecar(record)),
-        **extra,
-    }
+    data = {"point": point.pk, **upload_fields(record, name="run1.bin"), **extra}
     return client.post(f"/lab/comparisons/{CODE}/raw-data/", data)
 
 

@@ -12,20 +12,21 @@ import pytest
 from django.core.files.uploadedfile import SimpleUploadedFile
 
 from analysis.core.phase import difference
-from labs.models import Membership, RawFile, RawRecomputation, RawRecord
-from labs.services import api_key_create
+from analysis.core.signals.synthetic import imu_records, linear_phase_records
+from labs.models import RawFile, RawRecomputation, RawRecord
 from proficiency.models import MeasurementPoint
-from proficiency.services import measurement_points_generate
-from tests.factories import (
-    ComparisonFactory,
-    DeviceFactory,
-    LaboratoryFactory,
-    MembershipFactory,
-    ParticipantFactory,
-    ResultFactory,
-    SubmissionFactory,
+from tests.factories import LaboratoryFactory
+from tests.labs.raw_data_helpers import (
+    api_post,
+    axes,
+    daq_key,
+    key_client,
+    raw_round,
+    reporting,
+    sidecar,
+    staff,
+    upload_fields,
 )
-from tests.labs.raw_data_helpers import csv_bytes, int16_bytes, sidecar
 
 pytestmark = pytest.mark.django_db
 CODE = "RAW-PHASE"
@@ -39,56 +40,30 @@ TABLE_10 = {"device": "IMU 1", "axis": "X", "frequency_hz": "10", "bench": "curv
 @pytest.fixture
 def lab():
     laboratory = LaboratoryFactory.create(name="Phase Lab")
-    user = MembershipFactory.create(laboratory=laboratory, role=Membership.Role.STAFF).user
-    comparison = ComparisonFactory.create(code=CODE, status="closed", protocol="custom")
-    device = DeviceFactory.create(comparison=comparison, name="IMU 1", unit="D/(m/s^2)")
-    points = measurement_points_generate(
-        comparison=comparison, devices=[device], axes=["X"], frequencies_hz=[10, 80],
-        benches=["linear", "curvilinear"],
-    )  # fmt: skip
-    part = ParticipantFactory.create(comparison=comparison, laboratory=laboratory, code="P07")
-    sub = SubmissionFactory.create(participant=part, version=1, status="accepted")
-    for p in points:
-        ResultFactory.create(submission=sub, measurement_point=p, value=420.0,
-                             expanded_uncertainty=8.0, coverage_factor=2.0)  # fmt: skip
-    return {"user": user, "key": api_key_create(laboratory=laboratory, name="daq", user=None)[1]}
-
-
-def _files(dut, ref, **extra):
-    return {
-        "file": SimpleUploadedFile("dut.bin", int16_bytes(dut)),
-        "sidecar": SimpleUploadedFile("dut.bin.json", sidecar(dut, **extra)),
-        "reference_file": SimpleUploadedFile("ref.csv", csv_bytes(ref)),
-        "reference_sidecar": SimpleUploadedFile("ref.csv.json", sidecar(ref)),
-    }
-
-
-def _api_post(client, key, data, capture):
-    client.credentials(HTTP_AUTHORIZATION=f"Api-Key {key}")
-    with capture(execute=True):
-        return client.post(URL, data, format="multipart")
-
-
-def _axes(row):
-    return {a["axis"]: a for a in row.axes}
+    user = staff(laboratory)
+    comparison, points = raw_round(
+        CODE,
+        "IMU 1",
+        {"axes": ["X"], "frequencies_hz": [10, 80], "benches": ["linear", "curvilinear"]},
+    )
+    reporting(comparison, laboratory, "P07", points, (420.0, 8.0))
+    return {"user": user, "key": daq_key(laboratory)}
 
 
 def test_the_page_upload_stores_and_shows_the_phase(
     client, lab, django_capture_on_commit_callbacks
 ):
-    from analysis.core.signals.synthetic import linear_phase_records
-
     dut, ref = linear_phase_records(phase_deg=-12.5, duration=10.0, seed=5)
     point = MeasurementPoint.objects.get(comparison__code=CODE, bench="linear", frequency_hz=80)
     client.force_login(lab["user"])
     with django_capture_on_commit_callbacks(execute=True):
         response = client.post(f"/lab/comparisons/{CODE}/raw-data/", {"point": point.pk,
-                               **_files(dut, ref)})  # fmt: skip
+                               **upload_fields(dut, ref)})  # fmt: skip
     assert response.status_code == 302
     row = RawRecomputation.objects.get()
     assert row.status == "succeeded", row.error
     assert row.sensitivity == pytest.approx(420.0, rel=5e-4)  # today's figure, unchanged
-    x = _axes(row)["X"]
+    x = axes(row)["X"]
     assert abs(float(difference(x["phase_deg"], -12.5))) < 0.1 and x["phase_note"] == ""
     assert row.record.metadata["trigger_offset_s"] == 0.0123
     page = client.get(response["Location"]).content.decode()
@@ -103,63 +78,51 @@ def test_the_page_upload_stores_and_shows_the_phase(
 def test_start_times_as_form_fields_are_a_common_time_base(
     client, lab, django_capture_on_commit_callbacks
 ):
-    from analysis.core.signals.synthetic import linear_phase_records
-
     dut, ref = linear_phase_records(phase_deg=33.0, duration=10.0, time_base=None)
     point = MeasurementPoint.objects.get(comparison__code=CODE, bench="linear", frequency_hz=80)
     client.force_login(lab["user"])
     fields = {"start_time_s": "1700000000.0123", "reference_start_time_s": "1700000000"}
     with django_capture_on_commit_callbacks(execute=True):
         client.post(f"/lab/comparisons/{CODE}/raw-data/", {"point": point.pk,
-                    **_files(dut, ref), **fields})  # fmt: skip
+                    **upload_fields(dut, ref), **fields})  # fmt: skip
     row = RawRecomputation.objects.get()
     assert row.record.reference_metadata["start_time_s"] == 1.7e9
-    assert abs(float(difference(_axes(row)["X"]["phase_deg"], 33.0))) < 0.1
+    assert abs(float(difference(axes(row)["X"]["phase_deg"], 33.0))) < 0.1
 
 
 def test_without_a_time_base_the_page_says_so_in_words(
     client, lab, django_capture_on_commit_callbacks
 ):
-    from analysis.core.signals.synthetic import linear_phase_records
-
     dut, ref = linear_phase_records(duration=10.0, time_base=None)
     client.force_login(lab["user"])
     point = MeasurementPoint.objects.get(comparison__code=CODE, bench="linear", frequency_hz=80)
     with django_capture_on_commit_callbacks(execute=True):
         response = client.post(f"/lab/comparisons/{CODE}/raw-data/", {"point": point.pk,
-                               **_files(dut, ref)})  # fmt: skip
+                               **upload_fields(dut, ref)})  # fmt: skip
     row = RawRecomputation.objects.get()
-    assert (_axes(row)["X"]["phase_deg"], _axes(row)["X"]["phase_note"]) == (None, NOTE)
+    assert (axes(row)["X"]["phase_deg"], axes(row)["X"]["phase_note"]) == (None, NOTE)
     assert row.sensitivity == pytest.approx(420.0, rel=5e-4)
     page = client.get(response["Location"]).content.decode()
     assert re.search(r'data-testid="phase-X">Phase not determinable: no common time base<', page)
 
 
 def test_the_api_upload_of_an_imu_stores_the_gyroscope(lab, django_capture_on_commit_callbacks):
-    from rest_framework.test import APIClient
-
-    from analysis.core.signals.synthetic import imu_records
-
     mems, enc = imu_records(gyro_dps=57.14, gyro_phase_deg=-3.2, accel_phase_deg=-4.0)
-    response = _api_post(APIClient(), lab["key"], {**_files(mems, enc), **TABLE_10},
-                         django_capture_on_commit_callbacks)  # fmt: skip
+    response = api_post(URL, lab["key"], {**upload_fields(mems, enc), **TABLE_10},
+                        django_capture_on_commit_callbacks)  # fmt: skip
     assert response.status_code == 201, response.json()
     row = RawRecomputation.objects.get()
     assert row.status == "succeeded", row.error
     assert row.sensitivity == pytest.approx(420.0, rel=5e-4)  # the point's accelerometer axis
-    gz, x = _axes(row)["GZ"], _axes(row)["X"]
+    gz, x = axes(row)["GZ"], axes(row)["X"]
     assert gz["sensor"] == "gyroscope" and abs(gz["sensitivity"] / 57.14 - 1) < 5e-4
     assert abs(gz["phase_deg"] + 3.2) < 0.1 and abs(x["phase_deg"] + 4.0) < 0.1
-    detail = APIClient()
-    detail.credentials(HTTP_AUTHORIZATION=f"Api-Key {lab['key']}")
-    body = detail.get(f"{URL}{row.record_id}/").json()
+    body = key_client(lab["key"]).get(f"{URL}{row.record_id}/").json()
     api_gz = {a["axis"]: a for a in body["recomputation"]["axes"]}["GZ"]
     assert api_gz["sensitivity_per_rad_s"] == pytest.approx(gz["sensitivity"] * 180 / np.pi)
 
 
 def test_the_page_shows_the_gyroscope_rows(client, lab, django_capture_on_commit_callbacks):
-    from analysis.core.signals.synthetic import imu_records
-
     mems, enc = imu_records(offset_s=None)
     point = MeasurementPoint.objects.get(
         comparison__code=CODE, bench="curvilinear", frequency_hz=10, direction="tangential"
@@ -167,9 +130,9 @@ def test_the_page_shows_the_gyroscope_rows(client, lab, django_capture_on_commit
     client.force_login(lab["user"])
     with django_capture_on_commit_callbacks(execute=True):
         response = client.post(f"/lab/comparisons/{CODE}/raw-data/", {"point": point.pk,
-                               **_files(mems, enc)})  # fmt: skip
+                               **upload_fields(mems, enc)})  # fmt: skip
     row = RawRecomputation.objects.get()
-    gz = _axes(row)["GZ"]
+    gz = axes(row)["GZ"]
     page = client.get(response["Location"]).content.decode()
     shown = re.search(r'data-testid="rate-GZ">([0-9.]+) digits/\(°/s\)<', page)
     assert shown and float(shown.group(1)) == pytest.approx(gz["sensitivity"], rel=1e-4), page
@@ -189,18 +152,12 @@ def test_the_page_shows_the_gyroscope_rows(client, lab, django_capture_on_commit
     ],
 )
 def test_hostile_sidecars_are_refused_by_key_with_nothing_stored(lab, extra, message):
-    from rest_framework.test import APIClient
-
-    from analysis.core.signals.synthetic import linear_phase_records
-
     dut, ref = linear_phase_records(duration=2.0)
-    data = _files(dut, ref)
+    data = upload_fields(dut, ref)
     doc = json.loads(sidecar(dut))
     text = json.dumps(doc)[:-1] + ", " + extra + "}"
     data["sidecar"] = SimpleUploadedFile("dut.bin.json", text.encode())
-    client = APIClient()
-    client.credentials(HTTP_AUTHORIZATION=f"Api-Key {lab['key']}")
-    response = client.post(URL, {**data, **LINEAR_80}, format="multipart")
+    response = key_client(lab["key"]).post(URL, {**data, **LINEAR_80}, format="multipart")
     assert response.status_code == 400, response.content
     body = response.json()
     assert message in body["detail"] and body["errors"][0]["field"] == "file"
@@ -216,14 +173,8 @@ def test_hostile_sidecars_are_refused_by_key_with_nothing_stored(lab, extra, mes
     ],
 )
 def test_hostile_form_fields_are_refused_by_key(lab, field, value, message):
-    from rest_framework.test import APIClient
-
-    from analysis.core.signals.synthetic import linear_phase_records
-
     dut, ref = linear_phase_records(duration=2.0)
-    client = APIClient()
-    client.credentials(HTTP_AUTHORIZATION=f"Api-Key {lab['key']}")
-    response = client.post(URL, {**_files(dut, ref), **LINEAR_80, field: value},
-                           format="multipart")  # fmt: skip
+    response = key_client(lab["key"]).post(URL, {**upload_fields(dut, ref), **LINEAR_80,
+                                                 field: value}, format="multipart")  # fmt: skip
     assert response.status_code == 400 and message in response.json()["detail"]
     assert (RawFile.objects.count(), RawRecord.objects.count()) == (0, 0)

@@ -11,26 +11,23 @@ import re
 from types import SimpleNamespace
 
 import pytest
-from django.core.files.uploadedfile import SimpleUploadedFile
-from rest_framework.test import APIClient
 
 from analysis.core.signals.records import Record
 from analysis.core.signals.synthetic import imu_records, linear_phase_records
-from labs.models import Membership, RawFile, RawRecomputation, RawRecord
+from labs.models import RawFile, RawRecomputation, RawRecord
 from labs.raw_outputs import en_number, point_figures
-from labs.services import api_key_create
 from proficiency.models import MeasurementPoint
-from proficiency.services import measurement_points_generate
-from tests.factories import (
-    ComparisonFactory,
-    DeviceFactory,
-    LaboratoryFactory,
-    MembershipFactory,
-    ParticipantFactory,
-    ResultFactory,
-    SubmissionFactory,
+from tests.factories import LaboratoryFactory
+from tests.labs.raw_data_helpers import (
+    api_post,
+    axes,
+    daq_key,
+    key_client,
+    raw_round,
+    reporting,
+    staff,
+    upload_fields,
 )
-from tests.labs.raw_data_helpers import csv_bytes, int16_bytes, sidecar
 
 pytestmark = pytest.mark.django_db
 CODE = "RAW-KINDS"
@@ -46,46 +43,22 @@ REPORTED = {"magnitude": (420.0, 8.0), "phase": (-12.3, 0.5), "angular_rate": (5
 @pytest.fixture
 def lab():
     laboratory = LaboratoryFactory.create(name="Kinds Lab")
-    user = MembershipFactory.create(laboratory=laboratory, role=Membership.Role.STAFF).user
-    comparison = ComparisonFactory.create(code=CODE, status="closed", protocol="custom")
-    device = DeviceFactory.create(comparison=comparison, name="IMU 1", unit="D/(m/s^2)")
-    points = measurement_points_generate(
-        comparison=comparison, devices=[device], axes=["X", "Z"], frequencies_hz=[80],
-        benches=["linear"], quantities=["magnitude", "phase"],
-    ) + measurement_points_generate(
-        comparison=comparison, devices=[device], axes=["X", "Z"], frequencies_hz=[10],
-        benches=["curvilinear"], quantities=["magnitude", "phase", "angular_rate"],
-    ) + measurement_points_generate(  # a point that exists as a phase only
-        comparison=comparison, devices=[device], axes=["X"], frequencies_hz=[160],
-        benches=["linear"], quantities=["phase"],
+    user = staff(laboratory)
+    comparison, points = raw_round(
+        CODE, "IMU 1",
+        {"axes": ["X", "Z"], "frequencies_hz": [80], "benches": ["linear"],
+         "quantities": ["magnitude", "phase"]},
+        {"axes": ["X", "Z"], "frequencies_hz": [10], "benches": ["curvilinear"],
+         "quantities": ["magnitude", "phase", "angular_rate"]},
+        # a point that exists as a phase only
+        {"axes": ["X"], "frequencies_hz": [160], "benches": ["linear"], "quantities": ["phase"]},
     )  # fmt: skip
-    part = ParticipantFactory.create(comparison=comparison, laboratory=laboratory, code="P03")
-    sub = SubmissionFactory.create(participant=part, version=1, status="accepted")
-    for p in points:
-        value, big_u = REPORTED[p.quantity]
-        ResultFactory.create(submission=sub, measurement_point=p, value=value,
-                             expanded_uncertainty=big_u, coverage_factor=2.0)  # fmt: skip
-    return {"user": user, "key": api_key_create(laboratory=laboratory, name="daq", user=None)[1]}
-
-
-def _files(dut: Record, ref: Record, **extra: object) -> dict[str, SimpleUploadedFile]:
-    return {
-        "file": SimpleUploadedFile("dut.bin", int16_bytes(dut)),
-        "sidecar": SimpleUploadedFile("dut.bin.json", sidecar(dut, **extra)),
-        "reference_file": SimpleUploadedFile("ref.csv", csv_bytes(ref)),
-        "reference_sidecar": SimpleUploadedFile("ref.csv.json", sidecar(ref)),
-    }
+    reporting(comparison, laboratory, "P03", points, REPORTED)
+    return {"user": user, "key": daq_key(laboratory)}
 
 
 def _post(key, data, capture):
-    client = APIClient()
-    client.credentials(HTTP_AUTHORIZATION=f"Api-Key {key}")
-    with capture(execute=True):
-        return client.post(URL, data, format="multipart")
-
-
-def _axes(row: RawRecomputation) -> dict[str, dict]:
-    return {a["axis"]: a for a in row.axes}
+    return api_post(URL, key, data, capture)
 
 
 def _stored(row: RawRecomputation) -> tuple[float, float]:
@@ -117,7 +90,7 @@ def test_a_phase_point_stores_the_axis_phase_and_en_against_the_reported_one(
     lab, django_capture_on_commit_callbacks
 ):
     dut, ref = linear_phase_records(phase_deg=-12.5, duration=10.0, seed=5)
-    response = _post(lab["key"], {**_files(dut, ref), **LINEAR_80, "quantity": "phase"},
+    response = _post(lab["key"], {**upload_fields(dut, ref), **LINEAR_80, "quantity": "phase"},
                      django_capture_on_commit_callbacks)  # fmt: skip
     assert response.status_code == 201, response.json()
     assert response.json()["quantity"] == "phase"
@@ -125,7 +98,7 @@ def test_a_phase_point_stores_the_axis_phase_and_en_against_the_reported_one(
     assert row.status == "succeeded", row.error
     assert row.record.measurement_point.quantity == "phase"
     assert row.parameters["quantity"] == "phase"
-    x, (phase, big_u) = _axes(row)["X"], _stored(row)
+    x, (phase, big_u) = axes(row)["X"], _stored(row)
     assert abs(phase - (-12.5)) < 0.1  # truth of the synthetic record
     assert phase == x["phase_deg"] and row.standard_uncertainty == x["u_phase_deg"]
     assert (row.coverage_factor, big_u) == (2.0, 2 * x["u_phase_deg"])
@@ -140,7 +113,7 @@ def test_en_of_a_phase_takes_the_wrapped_difference(lab, django_capture_on_commi
     point = MeasurementPoint.objects.get(quantity="phase", bench="linear", axis="X",
                                          frequency_hz=80)  # fmt: skip
     point.results.update(value=179.9)
-    response = _post(lab["key"], {**_files(dut, ref), **LINEAR_80, "quantity": "phase"},
+    response = _post(lab["key"], {**upload_fields(dut, ref), **LINEAR_80, "quantity": "phase"},
                      django_capture_on_commit_callbacks)  # fmt: skip
     assert response.status_code == 201, response.json()
     row = RawRecomputation.objects.get()
@@ -169,7 +142,7 @@ def test_a_phase_without_a_time_base_fails_with_the_records_sentence(
     client.force_login(lab["user"])
     with django_capture_on_commit_callbacks(execute=True):
         response = client.post(f"/lab/comparisons/{CODE}/raw-data/", {"point": point.pk,
-                               **_files(dut, ref)})  # fmt: skip
+                               **upload_fields(dut, ref)})  # fmt: skip
     assert response.status_code == 302
     row = RawRecomputation.objects.get()
     assert (row.status, row.error) == ("failed", f"axis X: {NOTE}")
@@ -190,7 +163,7 @@ def test_the_page_upload_of_a_phase_point_shows_the_kind_and_the_wrapped_differe
     assert f'value="{point.pk}"' in form and "80 Hz, linear vertical, phase" in form
     with django_capture_on_commit_callbacks(execute=True):
         response = client.post(f"/lab/comparisons/{CODE}/raw-data/", {"point": point.pk,
-                               **_files(dut, ref)})  # fmt: skip
+                               **upload_fields(dut, ref)})  # fmt: skip
     row = RawRecomputation.objects.get()
     assert row.status == "succeeded", row.error
     page = client.get(response["Location"]).content.decode()
@@ -204,13 +177,13 @@ def test_the_page_upload_of_a_phase_point_shows_the_kind_and_the_wrapped_differe
 
 def test_an_angular_rate_point_stores_the_gyroscope_axis(lab, django_capture_on_commit_callbacks):
     mems, enc = imu_records(gyro_dps=57.14)
-    response = _post(lab["key"], {**_files(mems, enc), **TABLE_10, "axis": "Z",
+    response = _post(lab["key"], {**upload_fields(mems, enc), **TABLE_10, "axis": "Z",
                                   "quantity": "angular_rate"},
                      django_capture_on_commit_callbacks)  # fmt: skip
     assert response.status_code == 201, response.json()
     row = RawRecomputation.objects.get()
     assert row.status == "succeeded", row.error
-    gz, (s, big_u) = _axes(row)["GZ"], _stored(row)
+    gz, (s, big_u) = axes(row)["GZ"], _stored(row)
     assert abs(s / 57.14 - 1) < 5e-4  # truth of the synthetic record
     assert (s, big_u) == (gz["sensitivity"], gz["expanded_uncertainty"])
     assert row.coverage_factor == gz["coverage_factor"] and row.budget == gz["budget"]
@@ -229,7 +202,7 @@ def test_a_gyroscope_only_record_recomputes_for_an_angular_rate_point(
     client.force_login(lab["user"])
     with django_capture_on_commit_callbacks(execute=True):
         response = client.post(f"/lab/comparisons/{CODE}/raw-data/", {"point": point.pk,
-                               **_files(_gyro_only(mems), enc)})  # fmt: skip
+                               **upload_fields(_gyro_only(mems), enc)})  # fmt: skip
     assert response.status_code == 302
     row = RawRecomputation.objects.get()
     assert row.status == "succeeded", row.error
@@ -244,8 +217,8 @@ def test_a_gyroscope_axis_the_table_does_not_turn_fails_with_its_note(
     lab, django_capture_on_commit_callbacks
 ):
     mems, enc = imu_records()
-    _post(lab["key"], {**_files(mems, enc), **TABLE_10, "axis": "X", "quantity": "angular_rate"},
-          django_capture_on_commit_callbacks)  # fmt: skip
+    data = {**upload_fields(mems, enc), **TABLE_10, "axis": "X", "quantity": "angular_rate"}
+    _post(lab["key"], data, django_capture_on_commit_callbacks)
     row = RawRecomputation.objects.get()
     assert row.status == "failed" and row.sensitivity is None
     assert (
@@ -258,7 +231,7 @@ def test_a_gyroscope_only_record_for_a_magnitude_point_still_says_what_is_missin
     lab, django_capture_on_commit_callbacks
 ):
     mems, enc = imu_records()
-    _post(lab["key"], {**_files(_gyro_only(mems), enc), **TABLE_10, "axis": "X"},
+    _post(lab["key"], {**upload_fields(_gyro_only(mems), enc), **TABLE_10, "axis": "X"},
           django_capture_on_commit_callbacks)  # fmt: skip
     row = RawRecomputation.objects.get()
     assert row.status == "failed"
@@ -286,10 +259,8 @@ def test_a_point_in_digits_per_rad_s_takes_the_gyroscope_figures_times_180_over_
 
 def test_no_quantity_for_a_point_that_exists_only_as_a_phase_is_refused(lab):
     dut, ref = linear_phase_records(duration=2.0, f=160.0)
-    client = APIClient()
-    client.credentials(HTTP_AUTHORIZATION=f"Api-Key {lab['key']}")
-    response = client.post(URL, {**_files(dut, ref), **LINEAR_80, "frequency_hz": "160"},
-                           format="multipart")  # fmt: skip
+    data = {**upload_fields(dut, ref), **LINEAR_80, "frequency_hz": "160"}
+    response = key_client(lab["key"]).post(URL, data, format="multipart")
     assert response.status_code == 400, response.content
     body = response.json()
     assert body["detail"] == (
@@ -302,10 +273,8 @@ def test_no_quantity_for_a_point_that_exists_only_as_a_phase_is_refused(lab):
 
 def test_an_unknown_quantity_is_refused_by_its_field(lab):
     dut, ref = linear_phase_records(duration=2.0)
-    client = APIClient()
-    client.credentials(HTTP_AUTHORIZATION=f"Api-Key {lab['key']}")
-    response = client.post(URL, {**_files(dut, ref), **LINEAR_80, "quantity": "gain"},
-                           format="multipart")  # fmt: skip
+    data = {**upload_fields(dut, ref), **LINEAR_80, "quantity": "gain"}
+    response = key_client(lab["key"]).post(URL, data, format="multipart")
     assert response.status_code == 400
     body = response.json()
     assert body["detail"] == "quantity must be one of magnitude, phase, angular_rate, got 'gain'"

@@ -23,7 +23,8 @@ from labs.api.throttling import LabAPIKeyRateThrottle, SessionUserRateThrottle
 from labs.importers import write_table
 from labs.importers.values import unescape_text
 from labs.models import Participant, Submission
-from tests.analysis.reports.conftest import analysed, demo, pdf_text  # noqa: F401 (fixtures)
+from tests.analysis.conftest import demo  # noqa: F401 (a fixture)
+from tests.analysis.reports.conftest import analysed, pdf_text  # noqa: F401 (fixtures)
 from tests.factories import UserFactory
 from tests.labs.api import as_csv, build_world, rows
 

@@ -6,18 +6,16 @@ time, and nothing is stored half-way."""
 from __future__ import annotations
 
 import json
-import threading
 import time
-from collections.abc import Callable
 from typing import Any
 
 import pytest
-from django.db import connection
 from rest_framework.test import APIClient
 
 from labs.importers import ImportErrors, parse_table
 from labs.models import Laboratory, Participant
 from proficiency.models import Comparison, ComparisonStatus
+from tests.concurrency import at_once
 from tests.factories import (
     ComparisonFactory,
     DeviceFactory,
@@ -27,28 +25,6 @@ from tests.factories import (
 )
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-
-def at_once(*calls: Callable[[], Any]) -> list[Any]:
-    """``calls`` in threads released together, each with its own connection."""
-    barrier = threading.Barrier(len(calls))
-    out: list[Any] = [None] * len(calls)
-
-    def body(i: int) -> None:
-        try:
-            barrier.wait(10)
-            out[i] = calls[i]()
-        except BaseException as exc:
-            out[i] = exc
-        finally:
-            connection.close()
-
-    threads = [threading.Thread(target=body, args=(i,)) for i in range(len(calls))]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(60)
-    return out
 
 
 @pytest.fixture

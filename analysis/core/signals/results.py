@@ -19,6 +19,17 @@ CLIPPED = "clipped"
 NOT_EXCITED = "not excited"
 
 
+def _budget_fields(b: Budget | None) -> dict[str, Any]:
+    """An ``axes`` entry's ``expanded_uncertainty``, ``coverage_factor``, ``dof_eff`` and
+    ``budget`` (docs/interfaces.md §5): its budget's, or none where it has no budget."""
+    if b is None:
+        return {"expanded_uncertainty": None, "coverage_factor": None, "dof_eff": None,
+                "budget": []}  # fmt: skip
+    d = b.to_dict()
+    return {"expanded_uncertainty": b.expanded, "coverage_factor": b.k, "dof_eff": d["dof_eff"],
+            "budget": d["components"]}  # fmt: skip
+
+
 @dataclass(frozen=True)
 class AxisResult:
     """Sensitivity of one MEMS axis at one mounting (docs/interfaces.md §5 ``axes`` entry)."""
@@ -59,10 +70,7 @@ class AxisResult:
             "reference_amplitude_m_s2": self.reference_amplitude_m_s2,
             "sensitivity": self.sensitivity,
             "standard_uncertainty": self.standard_uncertainty,
-            "expanded_uncertainty": b.expanded if b else None,
-            "coverage_factor": b.k if b else None,
-            "dof_eff": b.to_dict()["dof_eff"] if b else None,
-            "budget": b.to_dict()["components"] if b else [],
+            **_budget_fields(b),
             "status": self.status,
             "note": self.note,
         } | self.phase_dict()
@@ -101,10 +109,7 @@ class RateAxisResult:
             "sensitivity_per_rad_s": r.per_rad_s if r else None,
             "standard_uncertainty_per_rad_s": r.u_sensitivity * per_rad if r else None,
             "standard_uncertainty": r.u_sensitivity if r else None,
-            "expanded_uncertainty": b.expanded if b else None,
-            "coverage_factor": b.k if b else None,
-            "dof_eff": b.to_dict()["dof_eff"] if b else None,
-            "budget": b.to_dict()["components"] if b else [],
+            **_budget_fields(b),
             "status": self.status,
             "note": self.note,
             "phase_deg": phase.phase_deg,

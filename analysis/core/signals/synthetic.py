@@ -17,6 +17,8 @@ from analysis.core.signals.linear import expected_components
 from analysis.core.signals.records import INT16_RAIL, Record
 from analysis.core.uncertainty import G_N
 
+XYZ = ("x", "y", "z")  # a MEMS accelerometer's channels
+
 
 @dataclass(frozen=True)
 class Imperfections:
@@ -47,6 +49,31 @@ def _wave(f: float, fs: float, duration: float, phase: float, harmonic: float) -
     return np.asarray(x + harmonic * np.cos(2 * (2 * np.pi * f * t + phase)), dtype=np.float64)
 
 
+def _mems_meta(
+    channels: tuple[str, ...], bench: str, f: float, fs_nominal: float, **extra: object
+) -> dict[str, object]:
+    """The sidecar of a MEMS record on ``bench`` whose clock is only nominal
+    (docs/interfaces.md §2), then ``extra``."""
+    return {"channels": channels, "fs_nominal_hz": fs_nominal, "bench": bench,
+            "frequency_hz": f, **extra}  # fmt: skip
+
+
+def _on_the_table(radius: float, angle_deg: float) -> dict[str, object]:
+    """The sidecar keys of a record on the oscillating rotating table (x tangential)."""
+    return {"radius_m": radius, "oscillation_angle_deg": angle_deg,
+            "orientation": {"x": "tangential", "y": "radial", "z": "axial"}}  # fmt: skip
+
+
+def _reference(name: str, a_ref: float, f: float, fs: float, duration: float,
+               **extra: object) -> Record:  # fmt: skip
+    """The reference accelerometer's record (``ref``, m/s²) on its trusted clock ``fs``:
+    a_ref·cos(2πft + 0.4), the phase every DUT record here is written against."""
+    w = 2 * np.pi * f
+    ref = a_ref * np.cos(w * (np.arange(round(duration * fs)) / fs) + 0.4)
+    meta = {"channels": ("ref",), "fs_hz": fs, "frequency_hz": f, **extra}
+    return Record(name, ("ref",), ref[None, :], meta)
+
+
 def linear_record(
     sensitivity: tuple[float, float, float] = (420.0, 418.0, 425.0),
     *,
@@ -67,16 +94,9 @@ def linear_record(
     comp = expected_components(a_ref, tilt, rotation)[:, None]
     static = expected_components(G_N, tilt, rotation)[:, None] if imp.gravity else 0.0
     digits = s * (comp * _wave(f, fs, duration, phase, imp.harmonic)[None, :] + static)
-    meta = {
-        "channels": ("x", "y", "z"),
-        "fs_nominal_hz": fs_nominal,
-        "bench": "linear",
-        "frequency_hz": f,
-        "a_ref_m_s2": a_ref,
-        "tilt_deg": tilt,
-        "rotation_deg": rotation,
-    }
-    return Record("synthetic-linear", ("x", "y", "z"), _finish(digits, imp, rng), meta)
+    meta = _mems_meta(XYZ, "linear", f, fs_nominal, a_ref_m_s2=a_ref, tilt_deg=tilt,
+                      rotation_deg=rotation)  # fmt: skip
+    return Record("synthetic-linear", XYZ, _finish(digits, imp, rng), meta)
 
 
 def curvilinear_records(
@@ -104,16 +124,8 @@ def curvilinear_records(
     a_r = radius * (w * theta0) ** 2 / 2 * (1 - double)
     a_z = np.full_like(base, G_N if imp.gravity else 0.0)
     digits = np.asarray(sensitivity)[:, None] * np.stack([a_t, a_r, a_z])
-    meta = {
-        "channels": ("x", "y", "z"),
-        "fs_nominal_hz": fs_nominal,
-        "bench": "curvilinear",
-        "frequency_hz": f,
-        "radius_m": radius,
-        "oscillation_angle_deg": angle_deg,
-        "orientation": {"x": "tangential", "y": "radial", "z": "axial"},
-    }
-    mems = Record("synthetic-curvilinear", ("x", "y", "z"), _finish(digits, imp, rng), meta)
+    meta = _mems_meta(XYZ, "curvilinear", f, fs_nominal, **_on_the_table(radius, angle_deg))
+    mems = Record("synthetic-curvilinear", XYZ, _finish(digits, imp, rng), meta)
     enc = theta0 * _wave(f, encoder_fs, duration, phase, 0.0)
     enc = enc + rng.normal(0.0, encoder_noise_rad, enc.size) if encoder_noise_rad else enc
     enc_meta = {"channels": ("encoder_rad",), "fs_hz": encoder_fs}
@@ -138,19 +150,16 @@ def phase_records(
     common time base written): two records, as two instruments write them."""
     rng = np.random.default_rng(seed)
     n = round(duration * fs)
-    t_ref = np.arange(n) / fs
     start = offset_s if offset_s is not None else 0.0123
     t_dut = start + np.arange(n) / fs
     w = 2 * np.pi * f
-    ref = a_ref * np.cos(w * t_ref + 0.4)
     dut = sensitivity * a_ref * np.cos(w * t_dut + 0.4 + np.radians(phase_deg))
     dut = dut + rng.normal(0.0, noise_digits, n)
     meta: dict = {"channels": ("z",), "fs_hz": fs, "frequency_hz": f}
     if offset_s is not None:
         meta["trigger_offset_s"] = offset_s
-    ref_meta = {"channels": ("ref",), "fs_hz": fs, "frequency_hz": f}
     return (Record("synthetic-phase-dut", ("z",), dut[None, :], meta),
-            Record("synthetic-phase-ref", ("ref",), ref[None, :], ref_meta))  # fmt: skip
+            _reference("synthetic-phase-ref", a_ref, f, fs, duration))  # fmt: skip
 
 
 def gyro_record(
@@ -206,7 +215,6 @@ def linear_phase_records(
     neither.  With ``fs_nominal`` the MEMS clock is only nominal (actual ``fs``)."""
     rng = np.random.default_rng(seed)
     w = 2 * np.pi * f
-    t_ref = np.arange(round(duration * fs_ref)) / fs_ref
     t_dut = offset_s + np.arange(round(duration * fs)) / fs
     t_rad = np.radians(tilt)
     comp = a_ref * np.array([np.sin(t_rad), 0.0, np.cos(t_rad)])[:, None]  # signed projection
@@ -214,17 +222,16 @@ def linear_phase_records(
     wave = np.cos(w * t_dut + 0.4 + np.radians(phase_deg))[None, :]
     digits = np.asarray(sensitivity)[:, None] * (comp * wave + static)
     digits = np.round(digits + rng.normal(0.0, noise_digits, digits.shape))
-    meta: dict = {"channels": ("x", "y", "z"), "bench": "linear", "frequency_hz": f,
+    meta: dict = {"channels": XYZ, "bench": "linear", "frequency_hz": f,
                   "tilt_deg": tilt, "rotation_deg": 0.0}  # fmt: skip
     meta |= {"fs_nominal_hz": fs_nominal} if fs_nominal else {"fs_hz": fs}
-    ref_meta: dict = {"channels": ("ref",), "fs_hz": fs_ref, "frequency_hz": f}
+    ref_meta: dict = {}
     if time_base == "trigger":
         meta["trigger_offset_s"] = offset_s
     elif time_base == "start":
         meta["start_time_s"], ref_meta["start_time_s"] = 1.7e9 + offset_s, 1.7e9
-    ref = a_ref * np.cos(w * t_ref + 0.4)
-    return (Record("synthetic-linear-phase", ("x", "y", "z"), digits, meta),
-            Record("synthetic-linear-ref", ("ref",), ref[None, :], ref_meta))  # fmt: skip
+    return (Record("synthetic-linear-phase", XYZ, digits, meta),
+            _reference("synthetic-linear-ref", a_ref, f, fs_ref, duration, **ref_meta))  # fmt: skip
 
 
 def imu_records(
@@ -259,13 +266,9 @@ def imu_records(
     accel = np.asarray(sensitivity)[:, None] * np.stack([a_t, a_r, np.full_like(t, G_N)])
     gyro = np.stack([np.zeros_like(t), np.zeros_like(t), gyro_dps * omega_dps])
     data = np.round(np.vstack([accel, gyro]) + rng.normal(0.0, noise_digits, (6, t.size)))
-    channels = ("x", "y", "z", "gx", "gy", "gz")
-    meta: dict = {
-        "channels": channels, "fs_nominal_hz": fs_nominal, "bench": "curvilinear",
-        "frequency_hz": f, "radius_m": radius, "oscillation_angle_deg": angle_deg,
-        "orientation": {"x": "tangential", "y": "radial", "z": "axial"},
-        "gyro_unit": "digits", "gyro_full_scale_dps": 500.0,
-    }  # fmt: skip
+    channels = (*XYZ, "gx", "gy", "gz")
+    meta = _mems_meta(channels, "curvilinear", f, fs_nominal, **_on_the_table(radius, angle_deg),
+                      gyro_unit="digits", gyro_full_scale_dps=500.0)  # fmt: skip
     if offset_s is not None:
         meta["trigger_offset_s"] = offset_s
     enc = theta0 * np.cos(w * np.arange(round(duration * encoder_fs)) / encoder_fs)

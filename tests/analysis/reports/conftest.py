@@ -2,23 +2,14 @@
 
 import io
 from collections.abc import Sequence
-from io import StringIO
 from typing import overload
 
 import pytest
-from django.core.management import call_command
 
 from analysis.selectors import current_run
 from analysis.services import analysis_run_start
-from proficiency.models import Comparison
 
 CODE = "IMU-2024-DEMO"
-
-
-@pytest.fixture
-def demo():
-    call_command("load_demo", password="demo-password-1", stdout=StringIO())
-    return Comparison.objects.get(code=CODE)
 
 
 @pytest.fixture
@@ -29,6 +20,11 @@ def analysed(demo):
     run = current_run(demo)
     assert run is not None
     return run
+
+
+def words(text: str) -> str:
+    """``text`` with every run of white space (a line break of the PDF) one space."""
+    return " ".join(text.split())
 
 
 @pytest.fixture(autouse=True)

@@ -15,14 +15,10 @@ from analysis.reports.assemble import report_data
 from analysis.reports.figures import youden_pair
 from analysis.reports.render import render_report
 from labs.models import Participant
-from tests.analysis.reports.conftest import page_count, pdftotext
+from tests.analysis.reports.conftest import page_count, pdftotext, words
 from tests.analysis.test_performance import varied  # noqa: F401  # the fixture
 
 pytestmark = pytest.mark.django_db(transaction=True)
-
-
-def words(text: str) -> str:
-    return " ".join(text.split())
 
 
 def squ(t) -> str:

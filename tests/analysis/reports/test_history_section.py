@@ -19,13 +19,9 @@ from analysis.services import analysis_run_execute, analysis_run_start
 from coordination.demo import LINEAR_LAB, PREVIOUS_CODE
 from labs.models import Participant
 from proficiency.models import Comparison, ComparisonStatus
-from tests.analysis.reports.conftest import CODE, pdftotext
+from tests.analysis.reports.conftest import CODE, pdftotext, words
 
 pytestmark = pytest.mark.django_db
-
-
-def words(text: str) -> str:
-    return " ".join(text.split())
 
 
 def share(satisfactory: int, scored: int) -> str:

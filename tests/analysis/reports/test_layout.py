@@ -10,13 +10,8 @@ from collections.abc import Iterator
 
 from analysis.reports.data import AssignedRow, MatrixData, ResultRow, ScoreRow
 from analysis.reports.render import render_report
-from tests.analysis.reports.conftest import pdftotext
+from tests.analysis.reports.conftest import pdftotext, words
 from tests.analysis.reports.test_visual import small_report
-
-
-def words(text: str) -> str:
-    return " ".join(text.split())
-
 
 MATRIX = MatrixData("lab", "all", ("a", "b"), (418.0, 419.4684), (0.011, 1.0),
                     ((0.0, 0.1), (0.1, 0.0)), 0)  # fmt: skip

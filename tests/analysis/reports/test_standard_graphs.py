@@ -18,13 +18,9 @@ from analysis.reports.assemble import clear_run_contexts, report_data
 from analysis.reports.render import render_report
 from analysis.services import analysis_run_execute, analysis_run_start
 from labs.models import Laboratory, Participant
-from tests.analysis.reports.conftest import pdf_text
+from tests.analysis.reports.conftest import pdf_text, words
 
 pytestmark = pytest.mark.django_db
-
-
-def words(text: str) -> str:
-    return " ".join(text.split())
 
 
 @pytest.fixture

@@ -16,13 +16,9 @@ from analysis.reports.render import render_report
 from analysis.services import analysis_run_execute, analysis_run_start
 from analysis.standard_charts import CAPTIONS
 from labs.models import Participant
-from tests.analysis.reports.conftest import pdftotext
+from tests.analysis.reports.conftest import pdftotext, words
 
 pytestmark = pytest.mark.django_db
-
-
-def words(text: str) -> str:
-    return " ".join(text.split())
 
 
 @pytest.fixture

@@ -9,20 +9,21 @@ from django.contrib.auth.models import User
 from django.core.files.uploadedfile import SimpleUploadedFile
 from rest_framework.test import APIClient
 
-from labs.models import Membership, Participant, RawFile, RawRecomputation, RawRecord
-from labs.services import api_key_create
-from proficiency.services import measurement_points_generate
-from tests.factories import (
-    ComparisonFactory,
-    DeviceFactory,
-    LaboratoryFactory,
-    MembershipFactory,
-    ParticipantFactory,
-    ResultFactory,
-    SubmissionFactory,
-    UserFactory,
+from labs.models import Participant, RawFile, RawRecomputation, RawRecord
+from tests.factories import LaboratoryFactory, MembershipFactory, UserFactory
+from tests.labs.raw_data_helpers import (
+    TRUTH,
+    csv_bytes,
+    curvilinear,
+    daq_key,
+    int16_bytes,
+    linear,
+    raw_round,
+    reporting,
+    sidecar,
+    staff,
+    upload_fields,
 )
-from tests.labs.raw_data_helpers import TRUTH, csv_bytes, curvilinear, int16_bytes, linear, sidecar
 
 pytestmark = pytest.mark.django_db
 
@@ -56,38 +57,24 @@ def world():
         LaboratoryFactory.create(name="Bravo"),
     )
     w.users = {
-        "staff_a": MembershipFactory.create(laboratory=lab_a, role=Membership.Role.STAFF).user,
+        "staff_a": staff(lab_a),
         "staff_b": MembershipFactory.create(laboratory=lab_b).user,
         "coord": UserFactory.create(username="coord-raw"),
     }
-    comparison = ComparisonFactory.create(code=CODE, status="closed", protocol="custom")
+    grid = {"axes": ["X", "Y"], "frequencies_hz": [10], "benches": ["linear", "curvilinear"]}
+    comparison, points = raw_round(CODE, "MEMS 1", grid)
     comparison.coordinators.add(w.users["coord"])
-    device = DeviceFactory.create(comparison=comparison, name="MEMS 1", unit="D/(m/s^2)")
-    points = measurement_points_generate(
-        comparison=comparison, devices=[device], axes=["X", "Y"], frequencies_hz=[10],
-        benches=["linear", "curvilinear"],
-    )  # fmt: skip
-    w.part_a = ParticipantFactory.create(comparison=comparison, laboratory=lab_a, code="R17")
-    w.part_b = ParticipantFactory.create(comparison=comparison, laboratory=lab_b, code="R42")
-    for part in (w.part_a, w.part_b):
-        sub = SubmissionFactory.create(participant=part, version=1, status="accepted")
-        for p in points:
-            ResultFactory.create(
-                submission=sub, measurement_point=p, value=REPORTED,
-                expanded_uncertainty=REPORTED_U, coverage_factor=2.0, unit="D/(m/s^2)",
-            )  # fmt: skip
-    w.key_a = api_key_create(laboratory=lab_a, name="daq", user=None)[1]
+    w.part_a, w.part_b = (
+        reporting(comparison, lab, code, points, (REPORTED, REPORTED_U))
+        for lab, code in ((lab_a, "R17"), (lab_b, "R42"))
+    )
+    w.key_a = daq_key(lab_a)
     return w
 
 
 def post_linear(client, record=None, point=LINEAR_POINT, capture=None, **extra):
     record = record or linear()
-    data = {
-        "file": SimpleUploadedFile("run1.bin", int16_bytes(record)),
-        "sidecar": SimpleUploadedFile("run1.bin.json", sidecar(record)),
-        **point,
-        **extra,
-    }
+    data = {**upload_fields(record, name="run1.bin"), **point, **extra}
     if capture is None:
         return client.post(URL, data, format="multipart")
     with capture(execute=True):
@@ -120,8 +107,7 @@ def test_upload_recomputes_the_known_truth_and_en(world, django_capture_on_commi
 def test_curvilinear_with_encoder_reference(world, django_capture_on_commit_callbacks):
     mems, encoder = curvilinear()
     data = {
-        "file": SimpleUploadedFile("curv.bin", int16_bytes(mems)),
-        "sidecar": SimpleUploadedFile("curv.bin.json", sidecar(mems)),
+        **upload_fields(mems, name="curv.bin"),
         "reference_file": SimpleUploadedFile("encoder.csv", csv_bytes(encoder)),
         "reference_fs_hz": "1000",
         **CURV_POINT,
