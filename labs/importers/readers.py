@@ -436,7 +436,7 @@ def _uncast_cell(parser: Any, element: Any) -> dict[str, Any] | None:
     if element.get("r") is None:
         parser.col_counter -= 1  # already counted by the failed parse
     element.set("t", "str")
-    return parser.parse_cell(element)  # type: ignore[no-any-return]
+    return parser.parse_cell(element)
 
 
 def _row_number(given: str | None, previous: int) -> int:
