@@ -28,6 +28,7 @@ from analysis.core.groups import CoreInputError, Groups
 from common import quantities
 from common.errors import StateConflict, ValidationFailed
 from common.points import PointKey, point_label
+from labs.importers.values import NUMBER_RE, RANGE_TEXT, in_range
 from labs.models import Handover, KitMeasurement, KitSlot, Participant
 from labs.selectors import comparison_table
 from proficiency.models import Device, Kit, KitItem
@@ -35,6 +36,8 @@ from proficiency.models import Device, Kit, KitItem
 MAX_SLOTS = 1000
 MAX_TEXT = 1000
 MAX_MEASUREMENTS = 100_000
+#: a pilot's measurement lies within this many years of its round (:func:`_in_round`)
+MEASURED_WITHIN_YEARS = 10
 #: the columns of a kit's pilot measurements, in order (docs/domain.md §15)
 MEASUREMENT_COLUMNS = ("device", "axis", "frequency_hz", "bench", "direction", "measured_on",
                        "sensitivity", "expanded_uncertainty", "coverage_factor")  # fmt: skip
@@ -138,6 +141,7 @@ def handover_dispatch(
     sent = Handover.objects.filter(kit=kit, from_slot=from_slot)  # None: the provider's
     if (done := sent.first()) is not None:
         return done
+    arrival = None  # the provider's first dispatch follows no arrival
     if from_slot is not None:
         arrival = Handover.objects.filter(to_slot=from_slot).first()
         if arrival is None or arrival.received_at is None:
@@ -146,14 +150,27 @@ def handover_dispatch(
     if from_slot is None and to is None:
         raise StateConflict(f"{kit.name} has no circulation plan yet.")
     note = _text(carrier_note, "The carrier note", 500)
+    when = at or timezone.now()
+    _not_before(when, arrival.received_at if arrival else None, "sent on", "its arrival")
     try:
         with transaction.atomic():
             return Handover.objects.create(
-                kit=kit, from_slot=from_slot, to_slot=to, dispatched_at=at or timezone.now(),
+                kit=kit, from_slot=from_slot, to_slot=to, dispatched_at=when,
                 dispatched_by=user, carrier_note=note,
             )  # fmt: skip
     except IntegrityError:  # another request sent it a moment ago
         raise StateConflict(f"{kit.name} was just sent from this slot.") from None
+
+
+def _not_before(when: dt.datetime, earlier: dt.datetime | None, what: str, since: str) -> None:
+    """A hand-over's times follow the kit: it arrives after it was sent and is sent on
+    after it arrived (a time given by the caller, or a clock set back, could say otherwise)."""
+    if earlier is not None and when < earlier:
+        raise ValidationFailed(
+            f"The kit cannot be {what} at {when.astimezone(dt.UTC):%Y-%m-%d %H:%M} UTC, before "
+            f"{since} ({earlier.astimezone(dt.UTC):%Y-%m-%d %H:%M} UTC).",
+            errors=[{"field": "at", "message": f"before {since}"}],
+        )
 
 
 @transaction.atomic
@@ -177,7 +194,9 @@ def handover_receive(
         if (h.condition, h.condition_note) == (condition, text):
             return h
         raise StateConflict("This arrival was already logged; ask the coordinator to correct it.")
-    h.received_at, h.received_by = at or timezone.now(), user
+    when = at or timezone.now()
+    _not_before(when, h.dispatched_at, "received", "it was sent")
+    h.received_at, h.received_by = when, user
     h.condition, h.condition_note = condition, text
     if photo is not None:
         h.photo = photo
@@ -271,13 +290,35 @@ def circulation_status(kit: Kit, today: dt.date | None = None) -> list[SlotStatu
 
 
 def _finite(text: str, what: str, *, positive: bool = False) -> float:
+    """A number as the results table reads one (docs/interfaces.md §1): ASCII digits with
+    a decimal point, finite, and 0 or of a size the statistics can carry (a pilot's
+    1e308 or a U of 1e-320 made the kit's drift, and the run, infinite or NaN)."""
     try:
         value = float(text)
     except ValueError:
         raise ValueError(f"{what} must be a number, got {text[:20]!r}") from None
     if not math.isfinite(value) or (positive and not value > 0):
         raise ValueError(f"{what} must be finite{' and > 0' if positive else ''}")
+    if not NUMBER_RE.fullmatch(text):  # float() also reads "1_0" and other scripts' digits
+        raise ValueError(f"{what} must be a number in ASCII digits, got {text[:20]!r}")
+    if value != 0 and not in_range(abs(value)):
+        size = "" if positive else "0 or of a size "
+        raise ValueError(f"{what} must be {size}{RANGE_TEXT}, got {text[:20]}")
     return value
+
+
+def _in_round(day: dt.date, kit: Kit) -> dt.date:
+    """A pilot's measurement date within :data:`MEASURED_WITHIN_YEARS` of the round (its
+    submission deadline, else the day it was created): a mistyped year (2205, 0202) would
+    otherwise be a lever arm that decides the kit's drift alone (docs/domain.md §15)."""
+    c = kit.comparison
+    anchor = (c.submission_deadline or c.created_at).date()
+    if abs(day.toordinal() - anchor.toordinal()) > 366 * MEASURED_WITHIN_YEARS:
+        raise ValueError(
+            f"measured_on {day} is more than {MEASURED_WITHIN_YEARS} years from the round "
+            f"(its date {anchor}); check the year"
+        )
+    return day
 
 
 def _quantity(text: str) -> str:
@@ -306,10 +347,12 @@ def _measurement(kit: Kit, row: dict[str, str], points: dict[PointKey, int]) -> 
         raise ValueError(
             f"measured_on must be a date YYYY-MM-DD, got {cell('measured_on')[:20]!r}"
         ) from None
+    _in_round(measured_on, kit)
     k = cell("coverage_factor")
     return KitMeasurement(
         kit=kit, measurement_point_id=point, measured_on=measured_on,
-        value=quantities.stored_value(key.quantity, _finite(cell("sensitivity"), "sensitivity")),
+        value=quantities.stored_value(key.quantity, _finite(
+            cell("sensitivity"), "sensitivity", positive=quantities.kind(key.quantity).positive)),
         expanded_uncertainty=_finite(cell("expanded_uncertainty"), "expanded_uncertainty",
                                      positive=True),
         coverage_factor=_finite(k, "coverage_factor", positive=True) if k else 2.0,
