@@ -13,6 +13,7 @@ from typing import Any
 
 import psycopg
 from django.db import OperationalError as DjangoOperationalError
+from django.http import UnreadablePostError
 from rest_framework.response import Response
 
 logger = logging.getLogger(__name__)
@@ -62,6 +63,18 @@ class RequestTooLarge(ApplicationError):
     status_code = 413
 
 
+class BodyNotReceived(ApplicationError):
+    """408: the request's body did not arrive whole — the client fell silent for the read
+    timeout or sent slower than the minimum rate (``deploy/gunicorn.conf.py``) — so it was
+    never parsed and nothing was stored."""
+
+    status_code = 408
+
+    @classmethod
+    def of(cls, exc: Exception) -> BodyNotReceived:
+        return cls(f"The request did not arrive whole ({exc}); nothing was stored. Send it again.")
+
+
 class KeyReused(ApplicationError):
     """422: an ``Idempotency-Key`` sent again with a different request."""
 
@@ -88,6 +101,8 @@ def api_exception_handler(exc: Exception, context: dict[str, Any]) -> Response |
     # use this module's errors
     from rest_framework.views import exception_handler
 
+    if isinstance(exc, UnreadablePostError):  # a client too slow or gone: not our error
+        exc = BodyNotReceived.of(exc)
     if isinstance(exc, ApplicationError):
         return Response({"detail": exc.message, "errors": exc.errors}, status=exc.status_code)
     if isinstance(exc, DjangoOperationalError | psycopg.OperationalError):

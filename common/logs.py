@@ -40,13 +40,17 @@ class JsonFormatter(logging.Formatter):
 class ClientTimeoutFilter(logging.Filter):
     """gunicorn's gthread worker logs a socket timeout with a full traceback ("Socket error
     processing request."); for us it is the expected end of a client that fell silent for
-    ``GUNICORN_READ_TIMEOUT`` seconds (``deploy/gunicorn.conf.py``). Such a record becomes
-    one INFO line without the traceback; every other record passes unchanged."""
+    ``GUNICORN_READ_TIMEOUT`` seconds, or that sent its request slower than
+    ``GUNICORN_MIN_RATE`` (``deploy/gunicorn.conf.py``). Such a record becomes one INFO line
+    without the traceback; every other record passes unchanged."""
 
     def filter(self, record: logging.LogRecord) -> bool:
         exc = record.exc_info[1] if record.exc_info else None
         if isinstance(exc, TimeoutError):
-            record.msg, record.args = "Closed a connection silent past the read timeout", ()
+            slow = "too slowly" in str(exc)  # deploy/gunicorn.conf.py, PacedSocket
+            record.msg = ("Closed a connection sending its request too slowly" if slow
+                          else "Closed a connection silent past the read timeout")  # fmt: skip
+            record.args = ()
             record.exc_info = record.exc_text = None
             record.levelno, record.levelname = logging.INFO, "INFO"
         return True

@@ -18,10 +18,17 @@ from typing import Any
 
 from django.conf import settings
 from django.core.exceptions import BadRequest
-from django.http import Http404, HttpRequest, HttpResponse, JsonResponse, QueryDict
+from django.http import (
+    Http404,
+    HttpRequest,
+    HttpResponse,
+    JsonResponse,
+    QueryDict,
+    UnreadablePostError,
+)
 from django.views.defaults import bad_request as django_bad_request
 
-from common.errors import ValidationFailed
+from common.errors import BodyNotReceived, ValidationFailed
 from common.sizes import human_size
 
 #: Room for the multipart envelope (boundaries, headers, the other form fields).
@@ -197,14 +204,31 @@ class ControlCharacterMiddleware:
         content_type = request.META.get("CONTENT_TYPE", "")
         if content_type.startswith("multipart/form-data"):
             return None
-        errors = control_errors(query_dict_pairs(request.POST))  # urlencoded (or nothing)
+        try:
+            errors = control_errors(query_dict_pairs(request.POST))  # urlencoded (or nothing)
+        except UnreadablePostError as exc:
+            return body_lost_response(request, exc)
         return control_response(request, ControlCharacters(errors)) if errors else None
 
     def process_exception(self, request: HttpRequest, exc: Exception) -> HttpResponse | None:
-        """A multipart field found by a (non-API) view's parsing: the same answer."""
+        """A multipart field found by a (non-API) view's parsing: the same answer; a body
+        that did not arrive whole: 408, as in the API."""
         if isinstance(exc, ControlCharacters):
             return control_response(request, exc)
+        if isinstance(exc, UnreadablePostError):
+            return body_lost_response(request, exc)
         return None
+
+
+def body_lost_response(request: HttpRequest, exc: Exception) -> HttpResponse:
+    """408 for a request whose body stopped arriving (docs/interfaces.md §3): the client was
+    silent for the read timeout or too slow, which is no server error (it was a 500 with a
+    traceback); Django logs the 408 as one warning line."""
+    error = BodyNotReceived.of(exc)
+    if request.path.startswith("/api/"):
+        return JsonResponse({"detail": error.message, "errors": []}, status=error.status_code)
+    return HttpResponse(error.message, status=error.status_code,
+                        content_type="text/plain; charset=utf-8")  # fmt: skip
 
 
 def validates_own_text(view: Callable[..., Any]) -> Callable[..., Any]:

@@ -136,11 +136,12 @@ def shown_group(group: Mapping[str, object]) -> dict[str, object]:
 def wrap_degrees(angle: float) -> float:
     """``angle`` wrapped into (−180°, 180°] (docs/domain.md §12): ``wrap(-180) = 180``,
     ``wrap(190) = -170``.  The scalar twin of ``analysis.core.phase.wrap``."""
-    r = math.fmod(angle + 180.0, 360.0)
-    if r < 0:
+    r = math.fmod(angle, 360.0)  # exact, as is one turn more or less (see ``wrap``)
+    if r > 180.0:
+        r -= 360.0
+    elif r <= -180.0:
         r += 360.0
-    out = r - 180.0
-    return 180.0 if out == -180.0 else out
+    return r + 0.0  # −0 is 0
 
 
 def stored_value(name: str | None, value: float) -> float:

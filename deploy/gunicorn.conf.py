@@ -5,17 +5,22 @@ Everything can be overridden from the environment: ``GUNICORN_BIND`` (default
 (workers, default 2 × cores + 1, at least 2), ``GUNICORN_TIMEOUT`` (seconds),
 ``GUNICORN_MAX_REQUESTS`` (requests a worker serves before it is replaced, default 20000),
 ``GUNICORN_THREADS`` (threads per worker, default 4), ``GUNICORN_READ_TIMEOUT`` (seconds,
-default 30), ``GUNICORN_KEEPALIVE`` (seconds, default 0).
+default 30), ``GUNICORN_MIN_RATE`` (bytes per second, default 10000), ``GUNICORN_KEEPALIVE``
+(seconds, default 0).
 
 Threaded workers (``gthread``), so that slow clients cannot stall the service: a sync
 worker reads one connection at a time, so as many clients as workers that send half
 their headers and wait (no buffering proxy in front, or a slow network) kept every
 worker, and ``/healthz``, waiting. Here a connection that sends nothing costs no thread;
 one that is partly sent holds one thread of its worker, for at most
-``GUNICORN_READ_TIMEOUT`` seconds of silence (then it is closed). Keep-alive is off by
-default: with it, gthread pinned each client's connection to one worker and the load
-test's p95 latency was 1.5-2x the sync workers' (bench/README.md, "Load test"); without
-it every request is a new connection, spread over the workers as with sync workers.
+``GUNICORN_READ_TIMEOUT`` seconds of silence (then it is closed), and a request must arrive
+at ``GUNICORN_MIN_RATE`` on average: a client that trickles it, a byte now and then but
+never silent for long, is closed after twice ``GUNICORN_READ_TIMEOUT`` plus
+size/``GUNICORN_MIN_RATE`` seconds (the application answers a body cut short with 408).
+Keep-alive is off by default: with it, gthread pinned each client's connection to one
+worker and the load test's p95 latency was 1.5-2x the sync workers' (bench/README.md,
+"Load test"); without it every request is a new connection, spread over the workers as
+with sync workers.
 Logs go to standard output as JSON lines (``LOG_FORMAT=plain`` for text), with
 the access log as key=value pairs inside ``message``.
 """
@@ -23,6 +28,8 @@ the access log as key=value pairs inside ``message``.
 import gc
 import multiprocessing
 import os
+import socket
+import time
 
 from gunicorn.workers.gthread import ThreadWorker
 
@@ -30,14 +37,62 @@ from gunicorn.workers.gthread import ThreadWorker
 READ_TIMEOUT = float(os.environ.get("GUNICORN_READ_TIMEOUT", "30"))
 
 
+#: bytes per second a request must arrive at, on average (Apache mod_reqtimeout's MinRate)
+MIN_RATE = float(os.environ.get("GUNICORN_MIN_RATE", "10000"))
+
+
+class PacedSocket:
+    """A connection's socket whose reads of one request end at a deadline that grows with
+    what arrives: twice ``READ_TIMEOUT`` after the first read, plus 1/``MIN_RATE`` s per byte
+    (so a client that falls silent meets the read timeout first). A client sending a byte
+    every few seconds, never silent for ``READ_TIMEOUT``, held a thread for as long as it
+    liked (hours for an upload of a few kilobytes). Everything but ``recv`` is the socket's."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        self._sock = sock
+        self.deadline: float | None = None
+
+    def start(self) -> None:
+        """A new request: its deadline starts at its first read (not while it waits for a
+        thread, which would cut it before a byte was read)."""
+        self.deadline = None
+
+    def recv(self, size: int, *flags: int) -> bytes:
+        now = time.monotonic()
+        if self.deadline is None:
+            self.deadline = now + 2 * READ_TIMEOUT
+        left = self.deadline - now
+        if left <= 0:
+            raise TimeoutError("the request arrived too slowly")
+        self._sock.settimeout(min(READ_TIMEOUT, left))
+        try:
+            data = self._sock.recv(size, *flags)
+        except TimeoutError:
+            if left >= READ_TIMEOUT:
+                raise  # silent for the read timeout
+            raise TimeoutError("the request arrived too slowly") from None
+        finally:
+            self._sock.settimeout(READ_TIMEOUT)  # the answer's writes keep the plain timeout
+        self.deadline += len(data) / MIN_RATE
+        return data
+
+    def __getattr__(self, name: str) -> object:
+        return getattr(self._sock, name)
+
+
 class SlowClientThreadWorker(ThreadWorker):
     """gunicorn's gthread worker, with a timeout on each read and write of a connection
     (gthread's own sockets block without one: a client that stops half-way through its
-    headers would hold a thread until it disconnects)."""
+    headers would hold a thread until it disconnects) and a minimum rate for reading a
+    request (:class:`PacedSocket`; not with TLS in gunicorn, which the proxy terminates)."""
 
-    def enqueue_req(self, conn):  # gthread's, with the timeout
+    def enqueue_req(self, conn):  # gthread's, with the timeout and the pace
+        if not self.cfg.is_ssl and not isinstance(conn.sock, PacedSocket):
+            conn.sock = PacedSocket(conn.sock)  # before init(), which gives it to the parser
         conn.init()  # blocking socket, parser
         conn.sock.settimeout(READ_TIMEOUT)
+        if isinstance(conn.sock, PacedSocket):
+            conn.sock.start()  # each request of a kept-alive connection has its own deadline
         future = self.tpool.submit(self.handle, conn)
         self._wrap_future(future, conn)
 

@@ -27,24 +27,49 @@ from analysis.core.phase import circular_mean, unwrap_about, wrap
 from common import quantities
 from common.errors import ValidationFailed
 from common.points import PointKey, point_label
+from labs.importers.values import NUMBER_RE, RANGE_TEXT, in_range
 from labs.models import KitMeasurement, KitSlot, Participant
 from labs.selectors import comparison_table
 from proficiency.models import Kit
 
 MAX_MEASUREMENTS = 100_000
+#: a kit's measurement lies within this many years of its round (:func:`_in_round`)
+MEASURED_WITHIN_YEARS = 10
 #: the columns of a kit's measurements (docs/domain.md §15): the first eight are required
 MEASUREMENT_COLUMNS = ("device", "axis", "frequency_hz", "bench", "direction", "measured_on",
                        "sensitivity", "expanded_uncertainty", "coverage_factor", "lab")  # fmt: skip
 
 
 def _finite(text: str, what: str, *, positive: bool = False) -> float:
+    """A number as the results table reads one (docs/interfaces.md §1): ASCII digits with
+    a decimal point, finite, and 0 or of a size the statistics can carry (a pilot's
+    1e308 or a U of 1e-320 made the kit's drift, and the run, infinite or NaN)."""
     try:
         value = float(text)
     except ValueError:
         raise ValueError(f"{what} must be a number, got {text[:20]!r}") from None
     if not math.isfinite(value) or (positive and not value > 0):
         raise ValueError(f"{what} must be finite{' and > 0' if positive else ''}")
+    if not NUMBER_RE.fullmatch(text):  # float() also reads "1_0" and other scripts' digits
+        raise ValueError(f"{what} must be a number in ASCII digits, got {text[:20]!r}")
+    if value != 0 and not in_range(abs(value)):
+        size = "" if positive else "0 or of a size "
+        raise ValueError(f"{what} must be {size}{RANGE_TEXT}, got {text[:20]}")
     return value
+
+
+def _in_round(day: dt.date, kit: Kit) -> dt.date:
+    """A measurement date within :data:`MEASURED_WITHIN_YEARS` of the round (its
+    submission deadline, else the day it was created): a mistyped year (2205, 0202) would
+    otherwise be a lever arm that decides the kit's drift alone (docs/domain.md §15)."""
+    c = kit.comparison
+    anchor = (c.submission_deadline or c.created_at).date()
+    if abs(day.toordinal() - anchor.toordinal()) > 366 * MEASURED_WITHIN_YEARS:
+        raise ValueError(
+            f"measured_on {day} is more than {MEASURED_WITHIN_YEARS} years from the round "
+            f"(its date {anchor}); check the year"
+        )
+    return day
 
 
 def _quantity(text: str) -> str:
@@ -106,11 +131,13 @@ def _measurement(ctx: _Context, row: dict[str, str]) -> KitMeasurement:
         raise ValueError(
             f"measured_on must be a date YYYY-MM-DD, got {cell('measured_on')[:20]!r}"
         ) from None
+    _in_round(measured_on, ctx.kit)
     k = cell("coverage_factor")
     return KitMeasurement(
         kit=ctx.kit, measurement_point_id=point, measured_on=measured_on,
         participant_id=ctx.participant(cell("lab")),
-        value=quantities.stored_value(key.quantity, _finite(cell("sensitivity"), "sensitivity")),
+        value=quantities.stored_value(key.quantity, _finite(
+            cell("sensitivity"), "sensitivity", positive=quantities.kind(key.quantity).positive)),
         expanded_uncertainty=_finite(cell("expanded_uncertainty"), "expanded_uncertainty",
                                      positive=True),
         coverage_factor=_finite(k, "coverage_factor", positive=True) if k else 2.0,

@@ -133,6 +133,7 @@ def handover_dispatch(
     sent = Handover.objects.filter(kit=kit, from_slot=from_slot)  # None: the provider's
     if (done := sent.first()) is not None:
         return done
+    arrival = None  # the provider's first dispatch follows no arrival
     if from_slot is not None:
         arrival = Handover.objects.filter(to_slot=from_slot).first()
         if arrival is None or arrival.received_at is None:
@@ -141,14 +142,27 @@ def handover_dispatch(
     if from_slot is None and to is None:
         raise StateConflict(f"{kit.name} has no circulation plan yet.")
     note = _text(carrier_note, "The carrier note", 500)
+    when = at or timezone.now()
+    _not_before(when, arrival.received_at if arrival else None, "sent on", "its arrival")
     try:
         with transaction.atomic():
             return Handover.objects.create(
-                kit=kit, from_slot=from_slot, to_slot=to, dispatched_at=at or timezone.now(),
+                kit=kit, from_slot=from_slot, to_slot=to, dispatched_at=when,
                 dispatched_by=user, carrier_note=note,
             )  # fmt: skip
     except IntegrityError:  # another request sent it a moment ago
         raise StateConflict(f"{kit.name} was just sent from this slot.") from None
+
+
+def _not_before(when: dt.datetime, earlier: dt.datetime | None, what: str, since: str) -> None:
+    """A hand-over's times follow the kit: it arrives after it was sent and is sent on
+    after it arrived (a time given by the caller, or a clock set back, could say otherwise)."""
+    if earlier is not None and when < earlier:
+        raise ValidationFailed(
+            f"The kit cannot be {what} at {when.astimezone(dt.UTC):%Y-%m-%d %H:%M} UTC, before "
+            f"{since} ({earlier.astimezone(dt.UTC):%Y-%m-%d %H:%M} UTC).",
+            errors=[{"field": "at", "message": f"before {since}"}],
+        )
 
 
 @transaction.atomic
@@ -172,7 +186,9 @@ def handover_receive(
         if (h.condition, h.condition_note) == (condition, text):
             return h
         raise StateConflict("This arrival was already logged; ask the coordinator to correct it.")
-    h.received_at, h.received_by = at or timezone.now(), user
+    when = at or timezone.now()
+    _not_before(when, h.dispatched_at, "received", "it was sent")
+    h.received_at, h.received_by = when, user
     h.condition, h.condition_note = condition, text
     if photo is not None:
         h.photo = photo

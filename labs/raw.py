@@ -8,7 +8,6 @@ files to its readers (docs/interfaces.md §2) and draws the figure (matplotlib, 
 from __future__ import annotations
 
 import io
-import json
 from collections.abc import Mapping
 from typing import Any
 
@@ -22,6 +21,7 @@ from matplotlib.figure import Figure
 from analysis.core.signals.records import (
     Record,
     SignalInputError,
+    json_document,
     read_csv,
     read_int16,
 )
@@ -43,10 +43,7 @@ PLOT_HARMONICS = (1, 2, 3)
 
 def sidecar_json(content: bytes, where: str) -> dict[str, Any]:
     """A JSON sidecar's object; SignalInputError naming ``where`` otherwise."""
-    try:
-        doc = json.loads(content.decode("utf-8-sig"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise SignalInputError(f"{where}: not valid JSON: {exc}") from None
+    doc = json_document(content, where)
     if not isinstance(doc, dict):
         raise SignalInputError(f"{where}: must be a JSON object of metadata keys")
     return doc
@@ -73,10 +70,7 @@ def form_metadata(fields: Mapping[str, Any]) -> dict[str, Any]:
 def _json_field(value: Any, key: str) -> Any:
     if not isinstance(value, str):
         return value
-    try:
-        return json.loads(value)
-    except json.JSONDecodeError as exc:
-        raise SignalInputError(f"{key}: not valid JSON: {exc}") from None
+    return json_document(value.encode("utf-8", "surrogatepass"), key)
 
 
 def read_record(content: bytes, name: str, meta: Mapping[str, Any]) -> Record:

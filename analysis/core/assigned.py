@@ -465,6 +465,26 @@ def _sequential(xp: FloatArray, wp: FloatArray, n: IntArray, alpha: float) -> Bo
     return keep
 
 
+def _dl_scale(w: FloatArray, groups: Groups) -> FloatArray:
+    """S1 − S2/S1 per group without its cancellation: Σ w_i·o_i / S1, o_i the sum of the
+    weights other than w_i, the largest weight's o summed from the others.  Taken as
+    S1 − w_max it is 0 when that weight dwarfs the rest (a U of 1e-29 beside U of 0.5
+    gave 0, τ² = ∞ and a NaN consensus); every other o is at least w_max, so S1 − w_i
+    is exact enough."""
+    idx = groups.index
+    largest = np.zeros(groups.n_groups)
+    np.maximum.at(largest, idx, w)  # weights are > 0; an empty group keeps 0
+    candidates = np.flatnonzero(w == largest[idx])
+    _, first = np.unique(idx[candidates], return_index=True)
+    top = np.zeros(w.size, dtype=np.bool_)
+    top[candidates[first]] = True  # one largest weight per group
+    rest = groups.sum(np.where(top, 0.0, w))  # summed in result order, as groups.sum does
+    s1 = largest + rest
+    others = np.where(top, rest[idx], s1[idx] - w)
+    with np.errstate(invalid="ignore", divide="ignore"):  # an empty group: not used
+        return groups.sum(w * others) / s1
+
+
 def dersimonian_laird(x: ArrayLike, u: ArrayLike, groups: Groups) -> AssignedValues:
     """Random-effects mean, DerSimonian & Laird (1986) as in the NIST Consensus Builder.
 
@@ -476,8 +496,7 @@ def dersimonian_laird(x: ArrayLike, u: ArrayLike, groups: Groups) -> AssignedVal
     w = 1.0 / us**2
     everyone = np.ones(groups.size, dtype=np.bool_)
     _, _, q, n = _weighted(xs, w, groups, everyone)
-    s1 = groups.sum(w)
-    denom = np.where(n > 1, s1 - groups.sum(w**2) / s1, 1.0)
+    denom = np.where(n > 1, _dl_scale(w, groups), 1.0)
     tau2 = np.where(n > 1, np.maximum(0.0, (q - (n - 1)) / denom), 0.0)
     mu, u_mu, _, _ = _weighted(xs, 1.0 / (us**2 + tau2[groups.index]), groups, everyone)
     return AssignedValues(

@@ -33,11 +33,13 @@ def wrap(angle: ArrayLike) -> FloatArray:
     a = np.asarray(angle, dtype=np.float64)
     if np.isinf(a).any():
         raise CoreInputError("a phase must be a finite number of degrees")
-    # remainder into [0, 360), then shift: x − 360·ceil((x − 180)/360) done without the
-    # rounding of a large quotient (np.remainder is exact for floats)
-    r = np.remainder(a + HALF_TURN, FULL_TURN)  # [0, 360): −180 maps to 0
-    out = r - HALF_TURN  # [−180, 180)
-    return np.where(out == -HALF_TURN, HALF_TURN, out)
+    # exactly a − 360·n, so an angle already in (−180°, 180°] comes back bit for bit (0.1
+    # stays 0.1): fmod is exact, and one turn added to or taken from a remainder of at
+    # least a half turn is exact too (Sterbenz); shifting by 180° first rounded (0.1 gave
+    # 0.0999999999999943).  + 0.0 makes −0 the 0 it stands for.
+    r = np.fmod(a, FULL_TURN)  # (−360, 360), with the sign of the angle
+    r = np.where(r > HALF_TURN, r - FULL_TURN, r)
+    return np.where(r <= -HALF_TURN, r + FULL_TURN, r) + 0.0
 
 
 def difference(x: ArrayLike, y: ArrayLike) -> FloatArray:

@@ -20,7 +20,7 @@ import io
 import zipfile
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .errors import MAX_LISTED_ERRORS, ImportErrors, RowError, fatal
 from .schema import COLUMNS
@@ -376,7 +376,11 @@ def _xlsx_records(
             tag = element.tag
             if tag == CELL_TAG:
                 count += 1
-                cell = parse_cell(element)
+                try:
+                    cell = parse_cell(element)
+                except ValueError:  # a number that is none: its text, checked with its row
+                    if (cell := _uncast_cell(parser, element)) is None:  # broken otherwise
+                        raise
                 column = cell["column"]
                 if count > MAX_COLUMNS or column > MAX_COLUMNS:
                     shape.row = cell["row"]
@@ -418,6 +422,21 @@ def _xlsx_records(
                 if row_outside:
                     shape.outside(number, row_first - 1, row_value, row_outside, row_last)
                 yield number, cells
+
+
+def _uncast_cell(parser: Any, element: Any) -> dict[str, Any] | None:
+    """A numeric cell whose text is no number (``nan``, ``inf``, ``0x10``, which no
+    spreadsheet writes) read as that text: the row's checks then name its row and column,
+    where openpyxl's cast made the whole worksheet "unreadable".  ``None`` for a cell that
+    is not a numeric one with a value (its ``ValueError`` stands)."""
+    from openpyxl.worksheet._reader import VALUE_TAG
+
+    if element.get("t", "n") != "n" or element.find(VALUE_TAG) is None:
+        return None
+    if element.get("r") is None:
+        parser.col_counter -= 1  # already counted by the failed parse
+    element.set("t", "str")
+    return parser.parse_cell(element)
 
 
 def _row_number(given: str | None, previous: int) -> int:

@@ -260,8 +260,9 @@ def _sensitivity(check: _RowCheck, quantity: str | None) -> float | None:
     except ValueProblem as problem:
         check.fail("sensitivity", str(problem))
         return None
-    if value != 0 and (issue := magnitude_problem(abs(value))):
-        check.fail("sensitivity", issue)
+    if value != 0 and not in_range(abs(value)):  # the signed value, as typed, in the message
+        check.fail("sensitivity", f"must be 0 or of a size {RANGE_TEXT} (the range the "
+                                  f"statistics can carry), got {display(raw)}")  # fmt: skip
         return None
     return quantities.stored_value(quantity, value)
 

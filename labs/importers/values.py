@@ -20,7 +20,7 @@ from common.sizes import human_size as human_size  # re-exported for the importe
 FORMULA_TRIGGERS = ("=", "+", "-", "@", "\t", "\r", "\n", "\uff1d", "\uff0b", "\uff0d", "\uff20")
 
 #: ASCII digits only: ``\d`` and ``float()`` would also take "٤٢٠" or "４２０" as 420.
-_NUMBER_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
+NUMBER_RE = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 #: The shape of a date as YYYY-MM-DD (whether that day exists is for the calendar to say).
 _DATE_RE = re.compile(r"\d{4}-\d{2}-\d{2}", re.ASCII)
 #: Characters no cell may hold: control characters other than tab, line feed and carriage
@@ -103,7 +103,8 @@ def magnitude_problem(value: float) -> str | None:
     """Why a finite number > 0 is outside the range the statistics can carry, or ``None``."""
     if in_range(value):
         return None
-    return f"must be {RANGE_TEXT} (the range the statistics can carry), got {value:.6g}"
+    # the shortest repr: 1e-320 as typed, not its 6 digits 9.99989e-321
+    return f"must be {RANGE_TEXT} (the range the statistics can carry), got {float(value)!r}"
 
 
 def is_blank(raw: object) -> bool:
@@ -175,7 +176,7 @@ def _parse_number_text(text: str, decimal_comma: bool, allow_inf: bool) -> float
         text_for_float = text.replace(",", ".")
     else:
         text_for_float = text
-    if not _NUMBER_RE.fullmatch(text_for_float):
+    if not NUMBER_RE.fullmatch(text_for_float):
         raise ValueProblem(f"must be a number, got {text!r}")
     return _finite(float(text_for_float), repr(text), allow_inf)
 

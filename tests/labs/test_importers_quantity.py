@@ -5,9 +5,13 @@ per-record one) give the same rows and the same errors."""
 from __future__ import annotations
 
 import math
+import re
+from fractions import Fraction
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from analysis.core.phase import wrap
 from common import quantities
@@ -146,3 +150,49 @@ def test_wrapping_a_huge_phase_is_exact():
     (row,) = both(row_with(quantity="phase", sensitivity="3600000000.5"))
     assert row.sensitivity == 0.5
     assert np.isfinite(row.sensitivity)
+
+
+def _exact_wrap(value: float) -> float:
+    r = Fraction(value) % 360
+    return float(r - 360 if r > 180 else r)
+
+
+#: phases the table takes: 0, or of a size the statistics carry (docs/interfaces.md §1)
+PHASES = st.floats(min_value=-1e30, max_value=1e30).filter(lambda x: x == 0 or abs(x) >= 1e-30)
+
+
+@settings(max_examples=200, deadline=None)
+@given(PHASES, st.sampled_from(["{!r}", "{:.17g}", "{:+.17e}", "{:.17E}"]))
+def test_any_phase_cell_is_stored_as_its_exact_wrap(value, spelling):
+    """Positive generation: every way a program writes a phase in range is read, and
+    stored as φ − 360°·n exactly (docs/domain.md §12), by both readers alike."""
+    cell = spelling.format(value)
+    (row,) = both(row_with(quantity="phase", sensitivity=cell, unit=""))
+    assert row.sensitivity == _exact_wrap(float(cell))
+    assert -180.0 < row.sensitivity <= 180.0
+    assert row.sensitivity != 0.0 or math.copysign(1.0, row.sensitivity) == 1.0  # −0 is 0
+
+
+NUMBER = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?", re.ASCII)
+HOSTILE_NUMBERS = st.one_of(
+    st.floats().filter(lambda x: not math.isfinite(x) or 0 < abs(x) < 1e-30 or abs(x) > 1e30)
+    .map(repr),
+    st.text(alphabet=st.characters(codec="utf-8"), min_size=1, max_size=12).filter(
+        lambda t: not NUMBER.fullmatch(t.strip())
+    ),
+)  # fmt: skip
+
+
+@settings(max_examples=300, deadline=None)
+@given(HOSTILE_NUMBERS)
+def test_a_phase_cell_out_of_range_or_no_number_is_named_and_nothing_is_read(cell):
+    """Negative generation: not finite, out of range, or text that is no plain ASCII number
+    (other scripts' digits, ``1_0``, control characters): one error on that row's
+    sensitivity, the same from both readers, and no row."""
+    record = row_with(quantity="phase", sensitivity=cell, unit="")
+    with pytest.raises(ImportErrors) as caught:
+        validate_records([(2, record)])
+    found = [(e.row, e.field) for e in caught.value.errors]
+    assert found == [(2, "sensitivity")], (cell, caught.value.errors)
+    if "\r" not in cell:  # unquoted by csv.writer, a lone CR ends a CSV line
+        assert [(r, f) for r, f, _ in errors(table(record))] == found  # the file reader agrees

@@ -149,8 +149,19 @@ def test_the_page_shows_the_gyroscope_rows(client, lab, django_capture_on_commit
         ('"start_time_s": "12\\u0000"', "start_time_s holds the control character U+0000"),
         ('"comment": "a\\u0000b"', "comment holds the control character U+0000"),
         ('"gyro_unit": "rad/s"', "gyro_unit must be one of digits, deg/s"),
+        # each of these was a 500: PostgreSQL's jsonb refuses a lone surrogate, json.loads
+        # recursed past the stack or refused a long integer, float() overflowed
+        ('"comment": "a\\ud800"', "comment holds the lone surrogate U+D800"),
+        ('"\\udfff": 1', "\\udfff holds the lone surrogate U+DFFF"),
+        ('"zones": ' + "[" * 5000 + "]" * 5000, "dut.bin.json: not valid JSON: nested too deeply"),
+        ('"big": 1' + "0" * 5000, "dut.bin.json: not valid JSON: Exceeds the limit"),
+        ('"trigger_offset_s": 1' + "0" * 400, "trigger_offset_s must be a number, got 1000"),
+        ('"extra": ' + '{"a": ' * 20 + "1" + "}" * 20, "is nested deeper than 16 levels"),
+        # float() reads these as 1 and 10; a number is written in ASCII digits
+        ('"trigger_offset_s": "\\u0661"', "trigger_offset_s must be a number, got '\u0661'"),
+        ('"start_time_s": "1_0"', "start_time_s must be a number, got '1_0'"),
     ],
-)
+)  # fmt: skip
 def test_hostile_sidecars_are_refused_by_key_with_nothing_stored(lab, extra, message):
     dut, ref = linear_phase_records(duration=2.0)
     data = upload_fields(dut, ref)
@@ -170,8 +181,10 @@ def test_hostile_sidecars_are_refused_by_key_with_nothing_stored(lab, extra, mes
         ("trigger_offset_s", "nan", "trigger_offset_s must be finite"),
         ("u_trigger_offset_s", "-0.1", "u_trigger_offset_s must be >= 0"),
         ("reference_start_time_s", "1e308", "start_time_s must be within"),
+        ("orientation", "[" * 5000 + "]" * 5000, "orientation: not valid JSON: nested too deeply"),
+        ("trigger_offset_s", "\u0661", "trigger_offset_s must be a number"),
     ],
-)
+)  # fmt: skip
 def test_hostile_form_fields_are_refused_by_key(lab, field, value, message):
     dut, ref = linear_phase_records(duration=2.0)
     response = key_client(lab["key"]).post(URL, {**upload_fields(dut, ref), **LINEAR_80,

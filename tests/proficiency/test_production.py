@@ -410,6 +410,7 @@ def test_gunicorn_config_has_at_least_two_workers_and_json_logs(monkeypatch):
 
     assert issubclass(config["worker_class"], ThreadWorker)
     assert (config["threads"], config["keepalive"], config["READ_TIMEOUT"]) == (4, 0, 30.0)
+    assert config["MIN_RATE"] == 10_000.0  # bytes per second a request must keep up
     formatter = config["logconfig_dict"]["formatters"]["json"]["()"]
     assert formatter == "common.logs.JsonFormatter"
 

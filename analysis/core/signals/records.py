@@ -139,39 +139,55 @@ def parse_meta(raw: Mapping[str, Any], where: str) -> dict[str, Any]:
     return meta
 
 
+#: a number as text: ASCII digits (float() also reads "1_0" and other scripts' digits), or
+#: a word for a non-finite one, refused as such below
+_NUMBER_TEXT = re.compile(
+    r"\s*[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)\s*", re.ASCII | re.I
+)
+
+
 def _number(value: Any, what: str) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float | str):
         raise SignalInputError(f"{what} must be a number, got {value!r}")
+    if isinstance(value, str) and not _NUMBER_TEXT.fullmatch(value):
+        raise SignalInputError(f"{what} must be a number, got {value!r}")
     try:
         out = float(value)
-    except ValueError:
+    except (ValueError, OverflowError):  # OverflowError: an int of more digits than a float
         raise SignalInputError(f"{what} must be a number, got {value!r}") from None
     if not np.isfinite(out):
         raise SignalInputError(f"{what} must be finite, got {value!r}")
     return out
 
 
-_CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f]")
-"""C0 characters no metadata text needs (NUL cannot even be stored by PostgreSQL)."""
+_CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff]")
+"""C0 characters no metadata text needs (NUL cannot even be stored by PostgreSQL), and lone
+UTF-16 surrogates, which JSON can carry and PostgreSQL's jsonb refuses."""
+MAX_DEPTH = 16
+"""Nesting of a metadata value (the keys of docs/interfaces.md §2 nest two levels)."""
 
 
-def _check_plain(value: Any, what: str, key: str = "") -> None:
-    """Refuse a control character (in a key or a text) or a non-finite number, anywhere in
-    a (nested) metadata value, naming the key's path."""
+def _check_plain(value: Any, what: str, key: str = "", depth: int = 0) -> None:
+    """Refuse a control character or a lone surrogate (in a key or a text), a non-finite
+    number, or nesting deeper than :data:`MAX_DEPTH`, anywhere in a (nested) metadata value,
+    naming the key's path."""
     for text in (key, value if isinstance(value, str) else ""):
         if found := _CONTROL.search(text):
-            shown = what.encode("unicode_escape").decode("ascii")  # a NUL in a key, escaped
-            raise SignalInputError(
-                f"{shown} holds the control character U+{ord(found.group()):04X}"
-            )
+            # a NUL or a surrogate in a key, escaped
+            shown = what.encode("unicode_escape", "backslashreplace").decode("ascii")
+            code = ord(found.group())
+            kind = "lone surrogate" if code >= 0xD800 else "control character"
+            raise SignalInputError(f"{shown} holds the {kind} U+{code:04X}")
     if isinstance(value, float) and not np.isfinite(value):
         raise SignalInputError(f"{what} must be finite, got {value!r}")
+    if depth > MAX_DEPTH and isinstance(value, Mapping | list | tuple):
+        raise SignalInputError(f"{what} is nested deeper than {MAX_DEPTH} levels")
     if isinstance(value, Mapping):
         for k, v in value.items():
-            _check_plain(v, f"{what}.{k}", str(k))
+            _check_plain(v, f"{what}.{k}", str(k), depth + 1)
     elif isinstance(value, list | tuple):
         for i, v in enumerate(value):
-            _check_plain(v, f"{what}[{i}]")
+            _check_plain(v, f"{what}[{i}]", depth=depth + 1)
 
 
 def _bounded(value: Any, what: str, non_negative: bool, bound: float, unit: str) -> float:
@@ -361,15 +377,24 @@ def load_record(
     return read_int16(path.read_bytes(), path.name, meta)
 
 
+def json_document(content: bytes, where: str) -> Any:
+    """A sidecar's JSON (UTF-8, BOM allowed); SignalInputError naming ``where`` for what is
+    not valid JSON, an integer longer than Python converts (4,300 digits) or nesting deeper
+    than the parser's stack (a RecursionError was a 500)."""
+    try:
+        return json.loads(content.decode("utf-8-sig"))
+    except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError, the digits limit
+        raise SignalInputError(f"{where}: not valid JSON: {exc}") from None
+    except RecursionError:
+        raise SignalInputError(f"{where}: not valid JSON: nested too deeply") from None
+
+
 def read_sidecar(path: Path, *, required: bool) -> dict[str, Any]:
     if not path.is_file():
         if required:
             raise SignalInputError(f"{path}: no such sidecar file")
         return {}
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8-sig"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise SignalInputError(f"{path.name}: not valid JSON: {exc}") from None
+    doc = json_document(path.read_bytes(), path.name)
     if not isinstance(doc, dict):
         raise SignalInputError(f"{path.name}: the sidecar must be a JSON object")
     return doc

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 from itertools import combinations
 
 import numpy as np
@@ -358,6 +359,32 @@ def test_dersimonian_laird_matches_reference(data: list) -> None:
     assert a.value[0] == pytest.approx(mu, rel=1e-10, abs=1e-10)
     assert a.standard_uncertainty[0] == pytest.approx(u_mu, rel=1e-10)
     assert a.diagnostics["tau"][0] == pytest.approx(tau, rel=1e-7, abs=1e-7)
+
+
+def _dl_exact(x: list[float], u: list[float]) -> tuple[float, float]:
+    """τ² and μ of DerSimonian–Laird in exact rational arithmetic (the same formulas)."""
+    xs, w = [Fraction(v) for v in x], [1 / Fraction(v) ** 2 for v in u]
+    s1, s2 = sum(w), sum(a * a for a in w)
+    y = sum(a * b for a, b in zip(w, xs, strict=True)) / s1
+    q = sum(a * (b - y) ** 2 for a, b in zip(w, xs, strict=True))
+    tau2 = max(Fraction(0), (q - (len(x) - 1)) / (s1 - s2 / s1))
+    ws = [1 / (Fraction(v) ** 2 + tau2) for v in u]
+    return float(tau2), float(sum(a * b for a, b in zip(ws, xs, strict=True)) / sum(ws))
+
+
+@pytest.mark.parametrize(
+    ("x", "u"),
+    [([0.0, 2.0, 1.0], [1.0, 1.0, 5e-30]), ([16.0, -16.0, 16.0], [0.25, 0.25, 5e-30]),
+     ([1e28, 0.99e28, 1.01e28], [5e27, 1e26, 1e-30 * 1e28])],
+)  # fmt: skip
+def test_dersimonian_laird_with_one_weight_dwarfing_the_rest(x, u) -> None:
+    """S1 − S2/S1 cancelled to 0 when one u was 1e-29 of the others (values the results
+    table accepts): τ² was infinite and the consensus NaN, and the run failed."""
+    a = dersimonian_laird(x, u, g0(3))
+    tau2, mu = _dl_exact(x, u)
+    assert a.diagnostics["tau2"][0] == pytest.approx(tau2, rel=1e-9)
+    assert a.value[0] == pytest.approx(mu, rel=1e-9, abs=1e-300)
+    assert np.isfinite(a.standard_uncertainty[0])
 
 
 @given(values)

@@ -3,6 +3,8 @@ consensus against hand cases, scipy's circmean and a brute-force search of the c
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -12,6 +14,7 @@ from scipy import stats
 from analysis.core import phase
 from analysis.core.assigned import weighted_mean
 from analysis.core.groups import CoreInputError, Groups
+from common import quantities
 
 
 @pytest.mark.parametrize(
@@ -31,6 +34,27 @@ def test_wrap_is_in_range_and_the_same_angle(angle):
     assert -180.0 < w <= 180.0
     turns = (angle - w) / 360.0
     assert turns == pytest.approx(round(turns), abs=1e-9)
+
+
+def _exact_wrap(angle: float) -> float:
+    """The wrap in exact rational arithmetic: angle − 360·n, which a double holds exactly."""
+    r = Fraction(angle) % 360
+    return float(r - 360 if r > 180 else r)
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.one_of(st.floats(allow_nan=False, allow_infinity=False),
+                 st.floats(min_value=-1e3, max_value=1e3),
+                 st.sampled_from([0.1, -0.1, 179.9, -179.9, 1e-30, -1e-300, 5e-324, 1e22,
+                                  1e30, 359.99999999999994, -180.00000000000003])))  # fmt: skip
+def test_wrap_is_exact_and_an_angle_in_range_comes_back_bit_for_bit(angle):
+    """Shifting by 180° before the remainder rounded: 0.1 came back 0.0999999999999943, 1e-30
+    came back 0 and 1e22 came back 100 (it is −80): every digit of a stored phase matters."""
+    expected = _exact_wrap(angle)
+    assert float(phase.wrap(angle)) == expected == quantities.wrap_degrees(angle)
+    if -180.0 < angle <= 180.0:
+        assert float(phase.wrap(angle)) == angle
+    assert np.copysign(1.0, phase.wrap(angle)) == 1.0 or expected != 0.0  # −0 is 0
 
 
 def test_an_infinite_phase_is_refused_nan_passes():
