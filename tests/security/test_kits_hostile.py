@@ -233,7 +233,7 @@ def test_bad_pilot_cells_are_400_naming_the_line_and_the_earlier_file_stands(
     bad[index] = value
     answer = r.measurements(GOOD[0], ",".join(bad))
     assert answer.status_code == 400
-    assert "The pilot&#x27;s measurements of Kit A have errors." in text(answer)
+    assert "The measurements of Kit A have errors." in text(answer)
     assert f"line 3: {message}" in text(answer), text(answer)[-3000:]
     assert r.stored() == before
     assert r.coord.get(f"/coordinator/{r.comparison.code}/kits/").status_code == 200
