@@ -35,9 +35,13 @@ HEADER = "device,axis,frequency_hz,bench,direction,quantity,sensitivity,unit,exp
 
 
 def wrap(a: float) -> float:
-    r = math.fmod(a + 180.0, 360.0)
-    r = r + 360.0 if r < 0 else r
-    return 180.0 if r == 0.0 else r - 180.0
+    """The test's own wrap into (−180°, 180°], exact (no shift by 180° before the fmod)."""
+    r = math.fmod(a, 360.0)
+    if r > 180.0:
+        r -= 360.0
+    elif r <= -180.0:
+        r += 360.0
+    return r + 0.0
 
 
 @pytest.fixture

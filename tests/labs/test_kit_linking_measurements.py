@@ -45,24 +45,25 @@ def test_an_unknown_code_or_a_lab_off_the_kit_is_refused_by_line_and_nothing_sto
     MeasurementPointFactory.create(device=devices[0], frequency_hz=5.0)
     kit_measurements_replace(kit=kit, text=LAB_HEADER + "\n".join(_pilot_lines()))
     before = sorted(KitMeasurement.objects.values_list("pk", flat=True))
-    stranger = ParticipantFactory.create(comparison=c, code="L77")  # in the round, not the loop
-    ParticipantFactory.create(code="L88")  # another round's
+    # in the round, not the loop; three digits, which the factory's codes never have
+    stranger = ParticipantFactory.create(comparison=c, code="L777")
+    ParticipantFactory.create(code="L888")  # another round's
     lines = [
         *_pilot_lines(419.0),
         f"MEMS 1,X,5,linear,vertical,2027-01-20,418.4,3.0,{labs[0].code}",
-        "MEMS 1,X,5,linear,vertical,2027-01-20,418.4,3.0,L99",
+        "MEMS 1,X,5,linear,vertical,2027-01-20,418.4,3.0,L999",
         f"MEMS 1,X,5,linear,vertical,2027-01-20,418.4,3.0,{stranger.code}",
-        "MEMS 1,X,5,linear,vertical,2027-01-20,418.4,3.0,L88",
+        "MEMS 1,X,5,linear,vertical,2027-01-20,418.4,3.0,L888",
         f"MEMS 1,X,5,linear,vertical,2027-01-20,418.5,3.0,{labs[0].code}",
     ]
     with pytest.raises(ValidationFailed) as caught:
         kit_measurements_replace(kit=kit, text=LAB_HEADER + "\n".join(lines))
     assert caught.value.message == "The measurements of Kit A have errors."
     assert [(e["row"], e["message"]) for e in caught.value.errors] == [
-        (7, "lab: no participant 'L99' in this round"),
-        (8, "lab: L77 holds no slot on Kit A, so it cannot have measured it (only the "
+        (7, "lab: no participant 'L999' in this round"),
+        (8, "lab: L777 holds no slot on Kit A, so it cannot have measured it (only the "
             "laboratories of its loop do)"),
-        (9, "lab: no participant 'L88' in this round"),
+        (9, "lab: no participant 'L888' in this round"),
         (10, "a second measurement of this point that day by this lab"),
     ]  # fmt: skip
     # the earlier file stands, row for row: the good lines of the bad file are not stored
