@@ -161,7 +161,7 @@ def test_a_table_of_two_kinds_writes_each_rows_unit(client, django_capture_on_co
     html = client.get(f"/coordinator/{r['comparison'].code}/results/kits/").content.decode()
     table = html[html.index("Each participant's kit") :]
     assert table[: table.index("</thead>")].count("(unit in each row)") == 5
-    for point, unit in ((0, "D/(m/s^2)"), (1, "D/(deg/s)")):
+    for point, unit in ((0, "D/(m/s^2)"), (1, "D/(°/s)")):  # stored D/(deg/s), shown with °
         k = row_of(r, "L5", point)
         assert k.linked_d is not None and k.linked_u is not None
         d = numbers.round_to_uncertainty(k.linked_d, 2 * k.linked_u, sign=True)
