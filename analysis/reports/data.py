@@ -321,8 +321,9 @@ class RoundStats:
     """Figures over every result and score of a run (:mod:`analysis.reports.rounds`), the
     same in every report of the run: computed once per run, not once per report.
 
-    ``frequency``: per device, per line (bench direction axis) the frequencies and the
-    median of the results there; ``largest_en``: (lab, largest |En|) in code order."""
+    ``frequency``: per device and quantity kind the device, the kind and its unit, and per
+    line (bench direction axis) the frequencies and the median of the results there; ``largest_en``:
+    (lab, largest |En|) in code order."""
 
     n_results: int
     n_scores: int
@@ -330,7 +331,9 @@ class RoundStats:
     spread: tuple[SpreadRow, ...]
     point_values: Mapping[int, PointValues]
     largest_en: tuple[tuple[str, float], ...]
-    frequency: tuple[tuple[str, tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...]], ...]
+    frequency: tuple[
+        tuple[str, str, str, tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...]], ...
+    ]
     point_scores: Mapping[int, PointScores] = field(default_factory=dict)
 
 
