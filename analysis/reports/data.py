@@ -11,6 +11,7 @@ import numpy as np
 from analysis.core.graphs import MandelGraph
 from common.points import PointKey, point_label
 from common.quantities import DEFAULT as DEFAULT_QUANTITY
+from common.quantities import label_shown, unit_text
 
 SUMMARY = "summary"
 PARTICIPANT = "participant"
@@ -54,11 +55,17 @@ class PointInfo:
     @property
     def label(self) -> str:
         """Without the device: the report's sections are headed by it."""
-        return point_label(self.key, device=False)
+        return self._with_unit(point_label(self.key, device=False))
 
     @property
     def full_label(self) -> str:
-        return point_label(self.key)
+        return self._with_unit(point_label(self.key))
+
+    def _with_unit(self, label: str) -> str:
+        """A kind other than the magnitude is not in its device's unit (the artefacts'
+        table): its label names the unit, ``Z, 5 Hz, linear vertical, sensitivity phase
+        (°)``, since the report's tables give numbers without one."""
+        return f"{label} ({unit_text(self.unit)})" if label_shown(self.quantity) else label
 
 
 @dataclass(frozen=True)
