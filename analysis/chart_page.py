@@ -23,6 +23,7 @@ from analysis.graph_data import (
 from analysis.models import AnalysisRun
 from analysis.selectors import run_matrices
 from analysis.viewer import COORDINATOR, Viewer
+from common import quantities
 from proficiency.models import MeasurementPoint
 
 
@@ -79,7 +80,7 @@ def _draw_point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str
     title = point_choice_label(point)
     return {
         "point": charts.point_chart(
-            **specs.point_arguments(data, title, point.device.unit, viewer.own_code)
+            **specs.point_arguments(data, title, point.value_unit, viewer.own_code)
         ),
         "en": charts.en_chart(data.labels, data.en, title=f"En · {title}",
                               limit=viewer.comparison.en_limit, highlight=viewer.own_code),
@@ -95,22 +96,27 @@ def _frequency_charts(viewer: Viewer) -> list[str]:
 
 
 def _draw_frequency_charts(viewer: Viewer) -> list[str]:
+    """One chart per device and quantity kind: a phase or an angular rate is not drawn on
+    its device's magnitude axis (nor against the magnitude's nominal value)."""
     assert viewer.run is not None
-    by_device: dict[str, list[charts.Series]] = {}
+    by_device: dict[tuple[str, str], list[charts.Series]] = {}
     for m in run_matrices(viewer.run, "frequency", {}):
         series = charts.Series(str(m.group.get("axis", "")), [float(f) for f in m.levels],
                                m.values, m.expanded_uncertainties)  # fmt: skip
-        by_device.setdefault(str(m.group.get("device", "")), []).append(series)
+        kind = str(m.group.get("quantity") or quantities.DEFAULT)
+        by_device.setdefault((str(m.group.get("device", "")), kind), []).append(series)
     devices = {d.name: d for d in viewer.comparison.devices.all()}
     out = []
-    for name, curves in sorted(by_device.items()):
+    for (name, kind), curves in sorted(by_device.items()):
         d = devices.get(name)
-        nominal = d.nominal_sensitivity if d else None
+        nominal = d.nominal_sensitivity if d and kind == quantities.DEFAULT else None
         half = None
         if d and nominal and d.tolerance:
             half = nominal * d.tolerance / 100 if d.tolerance_relative else d.tolerance
+        shown = quantities.label_shown(kind)
         out.append(charts.frequency_chart(
-            curves, title=f"{name}: mean of all labs per frequency", unit=d.unit if d else "",
+            curves, title=f"{name}{', ' + shown if shown else ''}: mean of all labs per frequency",
+            unit=quantities.point_unit(kind, d.unit) if d else "",
             nominal=nominal, nominal_half_width=half,
         ))  # fmt: skip
     return out

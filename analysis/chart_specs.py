@@ -81,7 +81,7 @@ def point_specs(viewer: Viewer, point: MeasurementPoint) -> dict[str, Spec]:
     assert viewer.run is not None
     run, own, limit = viewer.run, viewer.own_code, viewer.comparison.en_limit
     data = functools.cache(lambda: graph_data.point_data(run, point))
-    title, unit = point_choice_label(point), point.device.unit
+    title, unit = point_choice_label(point), point.value_unit
     builders: dict[str, Callable[[], Figure]] = {
         "point": lambda: charts.point_figure(**point_arguments(data(), title, unit, own)),
         "en": lambda: charts.en_figure(data().labels, data().en, title=f"En · {title}",
@@ -151,7 +151,7 @@ def youden_spec(viewer: Viewer, a: MeasurementPoint, b: MeasurementPoint) -> Spe
             assigned_y=d.assigned_y,
             x_label=point_choice_label(a),
             y_label=point_choice_label(b),
-            unit=a.device.unit,
+            unit=a.value_unit,
             highlight=own,
         )
 

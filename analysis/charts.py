@@ -21,6 +21,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LinearSegmentedColormap
 from matplotlib.figure import Figure
 
+from common.quantities import unit_text
+
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.typing import RcKeyType
@@ -155,7 +157,7 @@ def point_figure(
                         ecolor=colour, capsize=cap, lw=1)  # fmt: skip
     ax.set_xlabel("Participant")
     _lab_ticks(ax, x, labels, highlight)
-    ax.set_ylabel(f"Sensitivity ({_unit(unit)})")
+    ax.set_ylabel(f"Sensitivity ({axis_unit(unit)})")
     ax.set_title(title)
     fig.legend(loc="outside lower center", ncols=2, frameon=False)
     return fig
@@ -268,7 +270,7 @@ def frequency_chart(
         ax.errorbar(x, s.y, yerr=s.expanded_uncertainty, fmt="-o", ms=4, capsize=3, lw=1,
                     color=SERIES[i % len(SERIES)], label=s.label)  # fmt: skip
     ax.set_xlabel("Frequency (Hz)")
-    ax.set_ylabel(f"Sensitivity ({_unit(unit)})")
+    ax.set_ylabel(f"Sensitivity ({axis_unit(unit)})")
     ax.set_title(title)
     fig.legend(loc="outside lower center", ncols=5, frameon=False)
     return _svg(fig)
@@ -282,8 +284,9 @@ def _offsets(series: Sequence[Series]) -> list[float]:
     return [0.012 * (span or 1.0) * (i - (n - 1) / 2) for i in range(n)]
 
 
-def _unit(unit: str) -> str:
-    return unit.replace("^2", "²")
+def axis_unit(unit: str) -> str:
+    """A unit on an axis: ``°`` for degrees (``common.quantities.unit_text``), ``²``."""
+    return unit_text(unit).replace("^2", "²")
 
 
 @_with_rc

@@ -82,13 +82,14 @@ def run_points(run: AnalysisRun) -> list[MeasurementPoint]:
 def point_pairs(points: list[MeasurementPoint]) -> list[tuple[str, str]]:
     """The Youden pairs worth drawing, as (``"<pk>-<pk>"``, label): the same device, axis
     and frequency on the two benches or in two directions first (the benches have their
-    own directions), then two devices at the same axis, frequency, bench and direction."""
+    own directions), then two devices at the same axis, frequency, bench and direction;
+    both points of one quantity kind (a phase against a magnitude has no common unit)."""
     ranked: list[tuple[int, str, str]] = []
     by_key: dict[tuple, list[MeasurementPoint]] = {}
     for p in points:
         name, axis, f, bench, direction = p.key[:5]
-        by_key.setdefault(("bench", name, axis, f), []).append(p)
-        by_key.setdefault(("device", axis, f, bench, direction), []).append(p)
+        by_key.setdefault(("bench", p.quantity, name, axis, f), []).append(p)
+        by_key.setdefault(("device", p.quantity, axis, f, bench, direction), []).append(p)
     for (kind, *_), group in by_key.items():
         for i, a in enumerate(group):
             for b in group[i + 1 :]:

@@ -88,8 +88,7 @@ from analysis.tasks import (
 from common import jobs
 from common.errors import ApplicationError, StateConflict, ValidationFailed
 from common.jobs import heartbeat
-from common.points import POINT_LOOKUPS
-from common.quantities import shown_group
+from common.points import POINT_LOOKUPS, group_text
 from labs.models import Result
 from labs.selectors import current_submissions
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint, SigmaPtMode
@@ -541,8 +540,7 @@ def _check_matrices(matrices: list) -> None:
     for m in matrices:
         numbers = (np.asarray(m.value), np.asarray(m.expanded_uncertainty), np.asarray(m.en))
         if not all(np.isfinite(a).all() for a in numbers):
-            shown = shown_group(m.group).items()
-            group = ", ".join(f"{k} {v}" for k, v in shown) or "the whole round"
+            group = group_text(m.group) or "the whole round"
             raise ValidationFailed(
                 f"The {m.factor} compatibility matrix of {group} is not finite: the results "
                 "pooled there are too large or their uncertainties too small to compute with. "

@@ -31,8 +31,8 @@ from analysis.charts import (
     _lab_ticks,
     _note,
     _runs,
-    _unit,
     _with_rc,
+    axis_unit,
 )
 from analysis.charts import svg_of as _svg_of
 from analysis.core import graphs
@@ -131,8 +131,8 @@ def youden_figure(
         if o or len(labels) <= 20:  # codes beside the points while they can be read
             ax.annotate(lab, (px, py), xytext=(3, 3), textcoords="offset points", fontsize=7,
                         color=OWN if o else LAB)  # fmt: skip
-    ax.set_xlabel(f"{x_label} ({_unit(unit)})")
-    ax.set_ylabel(f"{y_label} ({_unit(unit)})")
+    ax.set_xlabel(f"{x_label} ({axis_unit(unit)})")
+    ax.set_ylabel(f"{y_label} ({axis_unit(unit)})")
     ax.set_title(title)
     fig.legend(loc="outside lower center", ncols=3, frameon=False)
     return fig
@@ -185,7 +185,8 @@ def mandel_figure(
     ax.axhline(0, color="black", lw=0.6)
     centres = np.arange(n_points) * slot + (n_labs - 1) / 2
     if n_points <= 40:
-        ax.set_xticks(centres, points, rotation=90, fontsize=6 if n_points > 12 else 8)
+        ticks = [_tick_lines(p) for p in points]
+        ax.set_xticks(centres, ticks, rotation=90, fontsize=6 if n_points > 12 else 8)
     else:
         ax.set_xticks([])
     if groups:
@@ -194,6 +195,19 @@ def mandel_figure(
     ax.set_ylabel(statistic)
     ax.set_title(title, pad=14 if groups else None)
     return fig
+
+
+def _tick_lines(label: str, width: int = 24) -> str:
+    """A point's label (``Z · 5 Hz · curvilinear tangential · angular-rate sensitivity``)
+    on lines of at most ``width`` characters, broken at its ``·``: a long label standing
+    upright under its bars would take the height of the plot."""
+    lines: list[str] = []
+    for part in label.split(" · "):
+        if lines and len(lines[-1]) + 3 + len(part) <= width:
+            lines[-1] += " · " + part
+        else:
+            lines.append(part)
+    return "\n".join(lines)
 
 
 def _indicators(
@@ -249,7 +263,7 @@ def density_figure(
     if own_value is not None:
         ax.plot([own_value], [0], "|", color=OWN, ms=18, mew=2.4, label="your result")
     ax.set_ylim(bottom=0)
-    ax.set_xlabel(f"Sensitivity ({_unit(unit)})")
+    ax.set_xlabel(f"Sensitivity ({axis_unit(unit)})")
     ax.set_ylabel("Density")
     ax.set_title(title)
     fig.legend(loc="outside lower center", ncols=4, frameon=False)
@@ -283,7 +297,7 @@ def doe_figure(
     ax.axhline(0, color="black", lw=0.8)
     ax.set_xlabel("Participant")
     _lab_ticks(ax, x, list(labels), highlight)
-    ax.set_ylabel(f"d = x − x_pt ({_unit(unit)})")
+    ax.set_ylabel(f"d = x − x_pt ({axis_unit(unit)})")
     ax.set_title(title)
     return fig
 

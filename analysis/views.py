@@ -49,6 +49,7 @@ from analysis.selectors import (
 from analysis.services import analysis_run_cancel, analysis_run_start
 from analysis.viewer import COORDINATOR, Viewer
 from common.errors import ApplicationError
+from common.points import group_text
 from common.quantities import shown_group
 from labs.access import coordinated, coordinated_comparisons, published_participation
 from labs.importers import write_table
@@ -394,11 +395,10 @@ def _matrices(viewer: Viewer, form: CompatibilityForm) -> tuple[list, str]:
             found = lab_matrices(viewer.run, form.point_filters())
         except ApplicationError as exc:
             return [], exc.message
-        return [(", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
-                           for k, v in shown_group(m.group).items()), m)
-                for m in found], ""  # fmt: skip
+        return [(group_text(m.group, "="), m) for m in found], ""
     filters = {k: v for k, v in form.filters().items() if k != "lab"}
-    return [(m.group_key, m) for m in run_matrices(viewer.run, factor, filters)], ""
+    return [(group_text(m.group, "=") or "all", m)
+            for m in run_matrices(viewer.run, factor, filters)], ""  # fmt: skip
 
 
 @login_required

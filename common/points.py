@@ -13,10 +13,11 @@ Pure: the standard library only, so that the two pure cores (``analysis.core`` a
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any, Final, NamedTuple
 
 from common.quantities import DEFAULT as DEFAULT_QUANTITY
+from common.quantities import label_shown, shown_group
 
 #: The six fields that name a measurand, in the order of keys, records and downloads.
 POINT_FIELDS: Final = ("device", "axis", "frequency_hz", "bench", "direction", "quantity")
@@ -75,13 +76,32 @@ def point_quantity(point: Sequence[Any]) -> str:
 
 def point_label(point: Sequence[Any], *, sep: str = ", ", device: bool = True) -> str:
     """``MEMS 1, X, 5 Hz, linear vertical`` from a point's fields (:data:`POINT_FIELDS`
-    order, or a :class:`PointKey`), with the quantity kind after them where it is not the
-    magnitude (``MEMS 1, X, 80 Hz, curvilinear tangential, phase``); ``sep`` joins the
-    parts (``" · "`` in form choices, a space in run messages), ``device=False`` leaves
-    the device out (report sections that are already headed by it)."""
+    order, or a :class:`PointKey`), with the quantity kind's label after them where it is
+    not the magnitude (``MEMS 1, X, 80 Hz, curvilinear tangential, sensitivity phase``;
+    ``common.quantities.label_shown``); ``sep`` joins the parts (``" · "`` in form choices,
+    a space in run messages), ``device=False`` leaves the device out (report sections that
+    are already headed by it)."""
     name, axis, frequency_hz, bench, direction = point[:5]
     parts = [str(axis), f"{format_number(float(frequency_hz))} Hz", f"{bench} {direction}"]
-    quantity = point_quantity(point)
-    if quantity != DEFAULT_QUANTITY:
-        parts.append(quantity)
+    kind = label_shown(point_quantity(point))
+    if kind:
+        parts.append(kind)
     return sep.join([str(name), *parts] if device else parts)
+
+
+def group_text(group: Mapping[str, object], sep: str = " ") -> str:
+    """A compatibility matrix's group in words (``device IMU 1, axis Z, sensitivity phase``;
+    ``sep`` between a key and its value, ``=`` on the pages): the keys in
+    :data:`POINT_FIELDS` order (a group read back from the database has them in another),
+    the kind by its label and only where it is not the magnitude
+    (``common.quantities.shown_group``); ``""`` for the whole round."""
+    shown = shown_group(group)
+    order = {k: i for i, k in enumerate(POINT_FIELDS)}
+    parts = []
+    for k in sorted(shown, key=lambda k: order.get(k, len(order))):
+        v = shown[k]
+        if k == "quantity":
+            parts.append(label_shown(str(v)))
+        else:
+            parts.append(f"{k}{sep}{v:g}" if isinstance(v, float) else f"{k}{sep}{v}")
+    return ", ".join(parts)

@@ -14,6 +14,7 @@ Pure: the standard library only, so that the two pure cores (``analysis.core`` a
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Final
@@ -50,6 +51,7 @@ class QuantityKind:
     units: tuple[tuple[str, float], ...] = ()
 
 
+_DEG = re.compile(r"\bdeg\b")  # the degree in a unit as written: deg, D/(deg/s)
 _PER_RAD_S = math.pi / 180.0  # digits per rad/s × π/180 = digits per °/s
 _DEGREES = (("deg", 1.0), ("°", 1.0), ("degree", 1.0), ("degrees", 1.0))
 _RATE_UNITS = tuple(
@@ -122,9 +124,29 @@ def point_unit(name: str | None, device_unit: str) -> str:
     return k.default_unit if k.units else device_unit
 
 
-def unit_symbol(name: str | None, unit: str) -> str:
-    """``unit`` as written after a number on a page: ``°`` for degrees."""
-    return "°" if unit == "deg" else unit
+def unit_text(unit: str) -> str:
+    """``unit`` as a person reads it on a page, in a report or on a chart's axis
+    (docs/domain.md §3.1): degrees as ``°`` (``deg`` → ``°``, ``D/(deg/s)`` → ``D/(°/s)``).
+    Stored values, downloads and the API keep the unit as written (``deg``), and every
+    spelling of :data:`KINDS` stays accepted on input."""
+    return _DEG.sub("°", unit)
+
+
+def with_unit(number: str, unit: str) -> str:
+    """``number`` and its unit as written (docs/domain.md §3.1): no space before the degree
+    sign (``-1.92°``), one before any other unit (``418.2 D/(m/s^2)``); the number alone
+    without a unit."""
+    shown = unit_text(unit)
+    if not shown:
+        return number
+    return f"{number}{shown}" if shown == "°" else f"{number} {shown}"
+
+
+def label_shown(name: str | None) -> str:
+    """The kind as words where a point's label names it (``common.points.point_label``, the
+    pages): the registry's label (``angular-rate sensitivity``), or ``""`` for the
+    magnitude, so a round of magnitudes reads as before kinds existed."""
+    return "" if (name or DEFAULT) == DEFAULT else kind(name).label
 
 
 def shown_group(group: Mapping[str, object]) -> dict[str, object]:

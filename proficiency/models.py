@@ -307,13 +307,20 @@ class MeasurementPoint(models.Model):
 
     @property
     def unit_shown(self) -> str:
-        """:attr:`value_unit` as written after a number on a page (``°`` for degrees)."""
-        return quantities.unit_symbol(self.quantity, self.value_unit)
+        """:attr:`value_unit` as a person reads it (``°``, ``D/(°/s)``:
+        ``common.quantities.unit_text``)."""
+        return quantities.unit_text(self.value_unit)
 
     @property
     def quantity_label(self) -> str:
         """``sensitivity phase``: the kind as words (the registry's label)."""
         return quantities.kind(self.quantity).label
+
+    @property
+    def kind_shown(self) -> str:
+        """The kind's label where a point's label names it, ``""`` for the magnitude
+        (``common.quantities.label_shown``)."""
+        return quantities.label_shown(self.quantity)
 
     @property
     def key(self) -> PointKey:

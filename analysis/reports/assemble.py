@@ -45,7 +45,8 @@ from analysis.reports.kits import for_reader, kit_section_of_run
 from analysis.reports.rounds import round_stats, stats_of_rows
 from analysis.reports.sections import FULL_TABLE_ROWS
 from analysis.reports.stability import stability_rows
-from common.quantities import point_unit, shown_group
+from common.points import group_text
+from common.quantities import point_unit
 from common.sizes import counted
 from labs.models import Participant
 from proficiency import protocols
@@ -671,7 +672,7 @@ def _matrices(run: AnalysisRun) -> tuple[MatrixData, ...]:
     return tuple(
         MatrixData(
             m.factor,
-            ", ".join(f"{k} {v}" for k, v in shown_group(m.group).items()) or "all",
+            group_text(m.group) or "all",
             tuple(str(level) for level in m.levels),
             tuple(m.values),
             tuple(m.expanded_uncertainties),

@@ -32,6 +32,8 @@ from matplotlib.figure import Figure
 from matplotlib.legend import Legend
 from matplotlib.path import Path
 
+from analysis.charts import axis_unit
+
 matplotlib.use("Agg")
 
 DPI = 200
@@ -259,7 +261,7 @@ class PointChart(Shared):
                     ecolor=LAB, capsize=cap, lw=lw,
                 )  # fmt: skip
             self.fig.subplots_adjust(**_x_axis(ax, labels))
-            ax.set_ylabel(f"Sensitivity ({unit})")
+            ax.set_ylabel(f"Sensitivity ({axis_unit(unit)})")
             ax.ticklabel_format(axis="y", useOffset=False)
             ax.set_title(title)
             ax.legend(loc="best", fontsize=7, frameon=False)
@@ -364,7 +366,7 @@ def frequency_chart(
         for label, freqs, values in series:
             ax.plot(freqs, values, marker="o", ms=3, lw=1, label=label)
         ax.set_xlabel("Frequency (Hz)")
-        ax.set_ylabel(f"Sensitivity ({unit})")
+        ax.set_ylabel(f"Sensitivity ({axis_unit(unit)})")
         ax.ticklabel_format(axis="y", useOffset=False)
         ax.set_title(title)
         ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=6, frameon=False)

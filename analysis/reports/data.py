@@ -11,6 +11,7 @@ import numpy as np
 from analysis.core.graphs import MandelGraph
 from common.points import PointKey, point_label
 from common.quantities import DEFAULT as DEFAULT_QUANTITY
+from common.quantities import label_shown, unit_text
 
 SUMMARY = "summary"
 PARTICIPANT = "participant"
@@ -54,11 +55,17 @@ class PointInfo:
     @property
     def label(self) -> str:
         """Without the device: the report's sections are headed by it."""
-        return point_label(self.key, device=False)
+        return self._with_unit(point_label(self.key, device=False))
 
     @property
     def full_label(self) -> str:
-        return point_label(self.key)
+        return self._with_unit(point_label(self.key))
+
+    def _with_unit(self, label: str) -> str:
+        """A kind other than the magnitude is not in its device's unit (the artefacts'
+        table): its label names the unit, ``Z, 5 Hz, linear vertical, sensitivity phase
+        (°)``, since the report's tables give numbers without one."""
+        return f"{label} ({unit_text(self.unit)})" if label_shown(self.quantity) else label
 
 
 @dataclass(frozen=True)
@@ -321,8 +328,9 @@ class RoundStats:
     """Figures over every result and score of a run (:mod:`analysis.reports.rounds`), the
     same in every report of the run: computed once per run, not once per report.
 
-    ``frequency``: per device, per line (bench direction axis) the frequencies and the
-    median of the results there; ``largest_en``: (lab, largest |En|) in code order."""
+    ``frequency``: per device and quantity kind the device, the kind and its unit, and per
+    line (bench direction axis) the frequencies and the median of the results there; ``largest_en``:
+    (lab, largest |En|) in code order."""
 
     n_results: int
     n_scores: int
@@ -330,7 +338,9 @@ class RoundStats:
     spread: tuple[SpreadRow, ...]
     point_values: Mapping[int, PointValues]
     largest_en: tuple[tuple[str, float], ...]
-    frequency: tuple[tuple[str, tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...]], ...]
+    frequency: tuple[
+        tuple[str, str, str, tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...]], ...
+    ]
     point_scores: Mapping[int, PointScores] = field(default_factory=dict)
 
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from reportlab.platypus import Flowable, KeepTogether, Paragraph
 
+from analysis.charts import axis_unit
 from analysis.core.graphs import sorted_scores, youden_data
 from analysis.core.groups import CoreInputError
 from analysis.core.scores import NEGLIGIBLE_FRACTION
@@ -17,6 +18,8 @@ from analysis.reports.images import WIDTH, RasterImage, _xobject, caption
 from analysis.reports.images import round_charts as _round_charts
 from analysis.reports.styles import STYLES
 from analysis.standard_charts import CAPTIONS
+from common.points import point_label
+from common.quantities import label_shown
 
 __all__ = ["WIDTH", "RasterImage", "_round_charts", "_xobject", "figures"]
 
@@ -227,9 +230,8 @@ def _frequency_charts(data: ReportData) -> list[Flowable]:
     """Median of the participants' results against frequency, one line per bench,
     direction and axis (the same in every report of a run, so the raster is cached)."""
     out: list[Flowable] = []
-    for device, series in data.round.frequency:
-        unit = next(p.unit for p in data.points if p.device == device)
-        title = f"{device}: median sensitivity against frequency"
+    for device, quantity, unit, series in data.round.frequency:
+        title = f"{device}: median {label_shown(quantity) or 'sensitivity'} against frequency"
         out.append(RasterImage(charts.frequency_chart(series, title=title, unit=unit)))
     return out
 
@@ -241,8 +243,10 @@ def _pair_rank(data: ReportData, a: int, b: int) -> int | None:
     """How worth drawing the pair of points ``a``, ``b`` is, as ``analysis.graph_data.
     point_pairs`` ranks the web's pairs: 0 the same device, axis and frequency on the two
     benches, 1 in two directions, 2 two devices at one axis, frequency, bench and
-    direction; None: not a pair."""
+    direction; None: not a pair (also two points of different quantity kinds)."""
     p, q = data.points[a], data.points[b]
+    if p.quantity != q.quantity:
+        return None
     if (p.device, p.axis, p.frequency_hz) == (q.device, q.axis, q.frequency_hz):
         return int(p.bench == q.bench)
     if (p.axis, p.frequency_hz, p.bench, p.direction) == (q.axis, q.frequency_hz, q.bench,
@@ -305,7 +309,8 @@ def _youden(data: ReportData) -> list[Flowable]:
         pa, pb = data.points[a], data.points[b]
         chart = found[key] = charts.youden_chart(
             labels, x, y, assigned=(assigned[a], assigned[b]), centre=centre, ring=ring,
-            x_label=f"{pa.full_label} ({pa.unit})", y_label=f"{pb.full_label} ({pb.unit})",
+            x_label=f"{point_label(pa.key)} ({axis_unit(pa.unit)})",
+            y_label=f"{point_label(pb.key)} ({axis_unit(pb.unit)})",
             title="Youden plot",
         )  # fmt: skip
     assert isinstance(chart, charts.YoudenChart)

@@ -10,6 +10,7 @@ from reportlab.platypus import Flowable, Spacer
 
 from analysis.reports.data import KitLink, KitSection, ReportData
 from analysis.reports.sections import by_unc, para, table, unc
+from common.quantities import with_unit
 
 
 def kits_section(data: ReportData) -> list[Flowable]:
@@ -34,8 +35,8 @@ def kits_section(data: ReportData) -> list[Flowable]:
                     "–" if d.p_value is None else f"{d.p_value:.3f}",
                 ]
             )
-        widths = [16 * mm, 44 * mm, 16 * mm, 8 * mm, 16 * mm, 24 * mm, 18 * mm, 14 * mm]
-        flow += [Spacer(1, 2 * mm), table(rows, widths)]
+        widths = [16 * mm, 58 * mm, 16 * mm, 8 * mm, 16 * mm, 26 * mm, 18 * mm, 14 * mm]
+        flow += [Spacer(1, 2 * mm), table(rows, widths, wrap=(0, 1, 2))]
     if k.links and data.is_participant:
         flow += [Spacer(1, 2 * mm), _links_table(data, k)]
     elif k.links and k.linked_round:
@@ -45,11 +46,13 @@ def kits_section(data: ReportData) -> list[Flowable]:
 
 def _labs_table(data: ReportData, k: KitSection) -> Flowable:
     """The summary: per participant (by code) its kit, its points linked and not, the
-    largest |d|/U(d) and the largest u_link over its points (one per unit, named, where its
-    points have several: a magnitude's and an angular rate's are not compared)."""
+    largest |d|/U(d) and the largest u_link over its points (one per unit, named, where the
+    round's points have several: a magnitude's and an angular rate's are not compared, and
+    a laboratory of one bench has its one number named too)."""
     by_code: dict[str, list[KitLink]] = {}
     for link in k.links:
         by_code.setdefault(link.code, []).append(link)
+    named = len({data.points[x.point].unit for x in k.links}) > 1
     rows = [["Lab", "Kit", "Points linked", "not linked", "largest |d|/U(d)", "largest u_link"]]
     for code, links in sorted(by_code.items()):
         done = [x for x in links if x.d is not None and x.big_u is not None]
@@ -57,19 +60,20 @@ def _labs_table(data: ReportData, k: KitSection) -> Flowable:
         kits = ", ".join(sorted({x.kit for x in links}))
         shown = "–" if ratio is None else f"{ratio:.2f}"
         rows.append([code, kits, str(len(done)), str(len(links) - len(done)), shown,
-                     _largest_u_link(data, done)])  # fmt: skip
-    return table(rows, [14 * mm, 24 * mm, 22 * mm, 16 * mm, 26 * mm, 54 * mm])
+                     _largest_u_link(data, done, named)])  # fmt: skip
+    widths = [14 * mm, 24 * mm, 24 * mm, 20 * mm, 28 * mm, 54 * mm]
+    return table(rows, widths, wrap=(1, 5))
 
 
-def _largest_u_link(data: ReportData, done: list[KitLink]) -> str:
+def _largest_u_link(data: ReportData, done: list[KitLink], named: bool) -> str:
     by_unit: dict[str, float] = {}
     for x in done:
         if x.u_link is not None:
             unit = data.points[x.point].unit
             by_unit[unit] = max(by_unit.get(unit, x.u_link), x.u_link)
-    if len(by_unit) < 2:
+    if not (named and by_unit):
         return unc(next(iter(by_unit.values()), None))
-    return "; ".join(f"{unc(u)} {unit}" for unit, u in by_unit.items())  # in point order
+    return "; ".join(with_unit(unc(u), unit) for unit, u in by_unit.items())  # point order
 
 
 def _links_table(data: ReportData, k: KitSection) -> Flowable:
@@ -95,5 +99,5 @@ def _links_table(data: ReportData, k: KitSection) -> Flowable:
         )
         if link.code == data.own_code:
             own.append(n)
-    widths = [11 * mm, 15 * mm, 45 * mm, 13 * mm, 17 * mm, 14 * mm, 18 * mm, 14 * mm, 14 * mm]
-    return table(rows, widths, own)
+    widths = [11 * mm, 15 * mm, 50 * mm, 13 * mm, 20 * mm, 17 * mm, 20 * mm, 14 * mm, 14 * mm]
+    return table(rows, widths, own, wrap=(1, 2, 3))

@@ -119,22 +119,25 @@ def _point_scores(
 
 def _frequency(
     points: Sequence[PointInfo], sorted_values: dict[int, np.ndarray]
-) -> tuple[tuple[str, tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...]], ...]:
-    """Per device (sorted): per line "bench direction axis" (sorted) the frequencies and
-    the median of every result at them (points of one frequency and line pooled)."""
-    pooled: dict[str, dict[str, dict[float, list[np.ndarray]]]] = defaultdict(dict)
+) -> tuple[tuple[str, str, str, tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...]], ...]:
+    """Per device and quantity kind (sorted; a phase or an angular rate is not in its
+    device's unit and is never pooled with its magnitude): the device, the kind, the unit
+    and, per line "bench direction axis" (sorted), the frequencies and the median of every
+    result at them (points of one frequency and line pooled)."""
+    pooled: dict[tuple[str, str, str], dict[str, dict[float, list[np.ndarray]]]] = defaultdict(dict)
     for p, v in sorted_values.items():
         info = points[p]
-        line = pooled[info.device].setdefault(f"{info.bench} {info.direction} {info.axis}", {})
+        chart = (info.device, info.quantity, info.unit)
+        line = pooled[chart].setdefault(f"{info.bench} {info.direction} {info.axis}", {})
         line.setdefault(info.frequency_hz, []).append(v)
     out = []
-    for device in sorted(pooled):
+    for chart in sorted(pooled):
         series = []
-        for label, by_f in sorted(pooled[device].items()):
+        for label, by_f in sorted(pooled[chart].items()):
             freqs = tuple(sorted(by_f))
             medians = tuple(_median(np.sort(np.concatenate(by_f[f]))) for f in freqs)
             series.append((label, freqs, medians))
-        out.append((device, tuple(series)))
+        out.append((*chart, tuple(series)))
     return tuple(out)
 
 

@@ -30,9 +30,17 @@ from analysis.reports.data import (
     ResultRow,
     ScoreRow,
 )
-from analysis.reports.styles import GRID, HEAD_BACKGROUND, OWN_BACKGROUND
+from analysis.reports.styles import BOLD, GRID, HEAD_BACKGROUND, OWN_BACKGROUND
 from analysis.reports.styles import STYLES as S
-from analysis.reports.tables import FastTable, cell_styles
+from analysis.reports.tables import (
+    ROW_HEIGHT,
+    FastTable,
+    LabelRows,
+    cell_height,
+    cell_styles,
+    width_needed,
+    wrapped_cells,
+)
 from common import numbers
 from common.sizes import counted
 
@@ -55,7 +63,6 @@ INTERPRETATION = (
 INSIDE_MARK = {True: " ●", False: " ○", None: ""}
 
 
-ROW_HEIGHT = 7.5 * 1.2 + 3.0  # leading of the 7.5 pt cell font + top and bottom padding
 STATUS_TEXT = {
     "final": "Final",
     "preliminary": "Preliminary (not the final report; results may still change)",
@@ -107,19 +114,24 @@ def table(
     widths: Sequence[float],
     own_rows: Sequence[int] = (),
     bad_cells: Sequence[tuple[int, int]] = (),
+    wrap: Sequence[int] = (),
 ) -> Table:
     """A grid with a repeated dark header; the reader's own rows bold on a pink background.
 
-    Cells are single-line strings, so every row has the same height; giving it saves
-    reportlab from measuring every remaining row again at each page break.  The cells'
-    styles are given, one object per look (:func:`~analysis.reports.tables.cell_styles`),
-    rather than set by style commands on a style object per cell."""
+    Cells are single-line strings, except those of the ``wrap`` columns (a point's label)
+    that are wider than their column: these are wrapped (:func:`~analysis.reports.tables.
+    wrapped_cells`).  Every row's height is given, which saves reportlab from measuring
+    every remaining row again at each page break.  The cells' styles are given, one object
+    per look (:func:`~analysis.reports.tables.cell_styles`), rather than set by style
+    commands on a style object per cell."""
+    styles = cell_styles(len(rows), len(widths), own_rows, bad_cells)
+    cells, heights = wrapped_cells(rows, widths, wrap, styles)
     t = FastTable(
-        rows,
+        cells,
         colWidths=list(widths),
-        rowHeights=[ROW_HEIGHT] * len(rows),
+        rowHeights=heights,
         repeatRows=1,
-        cellStyles=cell_styles(len(rows), len(widths), own_rows, bad_cells),
+        cellStyles=styles,
     )
     style: list[tuple[object, ...]] = [
         ("BACKGROUND", (0, 0), (-1, 0), HEAD_BACKGROUND),
@@ -275,8 +287,8 @@ def _worst_table(data: ReportData, mine: LabSummary) -> list[Flowable]:
             bad.append((len(rows) - 1, 2))
     if len(rows) == 1:
         return []
-    widths = [26 * mm, 86 * mm, 24 * mm, 26 * mm]
-    return [Spacer(1, 2 * mm), table(rows, widths, (), bad)]
+    widths = [27 * mm, 85 * mm, 24 * mm, 26 * mm]
+    return [Spacer(1, 2 * mm), table(rows, widths, (), bad, wrap=(1,))]
 
 
 HISTORY_NOTE = (
@@ -316,7 +328,7 @@ def own_history(data: ReportData) -> list[Flowable]:
     for p in found.points:
         points.append([p.label, str(p.n_rounds), _combined(p.rsz, p.rsz_flag),
                        _combined(p.rlp, p.rlp_flag)])  # fmt: skip
-    flow += [Spacer(1, 2 * mm), table(points, [88 * mm, 16 * mm, 28 * mm, 28 * mm], ()),
+    flow += [Spacer(1, 2 * mm), table(points, [88 * mm, 16 * mm, 28 * mm, 28 * mm], wrap=(0,)),
              para(HISTORY_NOTE, "small")]  # fmt: skip
     return flow
 
@@ -415,7 +427,7 @@ def artefacts(data: ReportData) -> list[Flowable]:
         rows.append([d.name, d.model or "–", d.serial or "–", tol, d.distribution, d.unit])
     return [
         para("3 Artefacts", "h1"),
-        table(rows, [18 * mm, 22 * mm, 34 * mm, 34 * mm, 34 * mm, 32 * mm]),
+        table(rows, [18 * mm, 22 * mm, 34 * mm, 34 * mm, 34 * mm, 32 * mm], wrap=(0, 1, 2, 5)),
         Spacer(1, 3 * mm),
         (intro if data.stability_rows else para)(
             f"<b>Homogeneity and stability:</b> {escape(data.stability)}"
@@ -448,8 +460,8 @@ def _stability_table(data: ReportData) -> list[Flowable]:
         )
         if not r.stable:
             bad.append((n, 7))
-    widths = [16 * mm, 44 * mm, 17 * mm, 17 * mm, 16 * mm, 11 * mm, 17 * mm, 13 * mm, 15 * mm]
-    return [table(rows, widths, (), bad)]  # right below its intro (the stability text)
+    widths = [16 * mm, 52 * mm, 17 * mm, 17 * mm, 16 * mm, 11 * mm, 17 * mm, 13 * mm, 15 * mm]
+    return [table(rows, widths, (), bad, wrap=(0, 1))]  # right below its intro (stability)
 
 
 CODES_LISTED = 1000  # above this many participants a participant report lists no codes
@@ -510,7 +522,8 @@ def assigned_values(data: ReportData) -> list[Flowable]:
             "exact largest-consistent-subset search; their subset is the sequential approximation, "
             "which can be smaller than the largest consistent subset (marked “approximate”)."
         ))  # fmt: skip
-    flow.append(table(rows, [18 * mm, 44 * mm, 20 * mm, 16 * mm, 20 * mm, 14 * mm, 42 * mm]))
+    widths = [18 * mm, 44 * mm, 20 * mm, 16 * mm, 20 * mm, 14 * mm, 42 * mm]
+    flow.append(table(rows, widths, wrap=(0, 1, 6)))
     left_out = [(data.points[a.point], a.excluded) for a in data.assigned if a.excluded]
     if left_out:
         listed = "; ".join(
@@ -574,7 +587,7 @@ def _spread_table(data: ReportData) -> list[Flowable]:
              at(r.high, places), at(x_pt.get(r.point), places), str(r.bad)]
         )  # fmt: skip
     widths = [16 * mm, 46 * mm, 12 * mm, 20 * mm, 20 * mm, 20 * mm, 20 * mm, 20 * mm]
-    return [table(rows, widths), Spacer(1, 2 * mm)]
+    return [table(rows, widths, wrap=(0, 1)), Spacer(1, 2 * mm)]
 
 
 def _result_table(
@@ -601,7 +614,7 @@ def _result_table(
             own.append(len(out) - 1)
         if s and abs(s.en) > data.en_limit:
             bad.append((len(out) - 1, 6))
-    return table(out, RESULT_WIDTHS, own, bad)
+    return table(out, RESULT_WIDTHS, own, bad, wrap=(0,))
 
 
 RESULT_HEAD = ["Point", "Lab", "Value", "U", "k", "D", "En", "ζ", "z / z′", "Flag"]
@@ -638,22 +651,36 @@ RESULT_WIDTHS = [
 class ListingTable(Flowable):
     """Rows ``start:stop`` of a :class:`ResultListing` as a results table built one page at
     a time: splitting builds a page-sized :class:`FastTable` of the rows that fit (their
-    height is fixed) and a new ``ListingTable`` of the rest, so the cost is linear in the
+    heights are known: one line, or a wrapped label's lines, :class:`~analysis.reports.
+    tables.LabelRows`) and a new ``ListingTable`` of the rest, so the cost is linear in the
     rows and only one page of cells exists at a time.  (One reportlab ``Table`` of every
     row re-creates the remaining rows at each page break: quadratic time, and the cells of
     every row held at once.)  The point's label is printed on its first row and again at
     the top of each page."""
 
-    def __init__(self, data: ReportData, listing: ResultListing, start: int, stop: int) -> None:
+    def __init__(
+        self, data: ReportData, listing: ResultListing, start: int, stop: int,
+        labels: LabelRows | None = None,
+    ) -> None:  # fmt: skip
         super().__init__()
         self.data, self.listing, self.start, self.stop = data, listing, start, stop
+        self.labels = labels or LabelRows(
+            listing.point[start:stop], start,
+            lambda p: cell_height(data.points[p].label, RESULT_WIDTHS[0]),
+        )  # fmt: skip
+
+    def _height(self, start: int, stop: int) -> float:
+        """The height of rows ``start:stop`` under the header."""
+        return (stop - start + 1) * ROW_HEIGHT + self.labels.added(start, stop)
 
     def wrap(self, availWidth: float, availHeight: float) -> tuple[float, float]:
-        self.width, self.height = sum(RESULT_WIDTHS), (self.stop - self.start + 1) * ROW_HEIGHT
+        self.width, self.height = sum(RESULT_WIDTHS), self._height(self.start, self.stop)
         return self.width, self.height
 
     def split(self, availWidth: float, availHeight: float) -> list[Flowable]:
         fit = min(int(availHeight // ROW_HEIGHT) - 1, self.stop - self.start)
+        while fit > 0 and self._height(self.start, self.start + fit) > availHeight:
+            fit -= 1
         while fit > 0:
             part = self.table(self.start, self.start + fit)
             if part.wrap(availWidth, availHeight)[1] <= availHeight:
@@ -663,7 +690,8 @@ class ListingTable(Flowable):
             return []
         if self.start + fit == self.stop:
             return [part]
-        return [part, ListingTable(self.data, self.listing, self.start + fit, self.stop)]
+        rest = ListingTable(self.data, self.listing, self.start + fit, self.stop, self.labels)
+        return [part, rest]
 
     def draw(self) -> None:
         part = self.table(self.start, self.stop)
@@ -701,7 +729,7 @@ class ListingTable(Flowable):
             last = point
             if abs(en) > limit:
                 bad.append((n, 6))
-        return table(out, RESULT_WIDTHS, (), bad)
+        return table(out, RESULT_WIDTHS, (), bad, wrap=(0,))
 
 
 def matrices(data: ReportData) -> list[Flowable]:
@@ -719,15 +747,20 @@ def matrices(data: ReportData) -> list[Flowable]:
             row += ["–" if i == j else f"{e:.2f}" for j, e in enumerate(m.en[i])]
             bad += [(i + 1, j + 3) for j, e in enumerate(m.en[i]) if i != j and e > data.en_limit]
             rows.append(row)
-        n = len(m.levels)
-        widths = [22 * mm, 18 * mm, 14 * mm] + [min(18.0, 110.0 / max(n, 1)) * mm] * n
+        widths = [22 * mm, 18 * mm, 14 * mm] + [_level_width(m.levels)] * len(m.levels)
         title = f"{m.factor} | {m.group} — {counted(m.incompatible_pairs, 'incompatible pair')}"
-        flow.append(
-            KeepTogether(
-                [para(escape(title), "small"), table(rows, widths, (), bad), Spacer(1, 3 * mm)]
-            )
-        )
+        part = table(rows, widths, (), bad, wrap=(0,))
+        flow.append(KeepTogether([para(escape(title), "small"), part, Spacer(1, 3 * mm)]))
     return flow
+
+
+def _level_width(levels: Sequence[str]) -> float:
+    """The width of a matrix's En columns: 18 mm, less where many levels share 110 mm, but
+    wide enough for the levels' names in their bold heading (``curvilinear``) while all of
+    them fit in 120 mm."""
+    n = max(len(levels), 1)
+    needed = max((width_needed(str(v), BOLD) for v in levels), default=0.0)
+    return min(max(min(18.0, 110.0 / n) * mm, needed), 120.0 * mm / n)
 
 
 CONSISTENCY = (
@@ -779,8 +812,8 @@ def _consistency_table(data: ReportData, rows: Sequence[ConsistencyRow]) -> Tabl
             own.append(len(out) - 1)
         if r.verdict == "outlier":
             bad.append((len(out) - 1, 6))
-    widths = [16 * mm, 44 * mm, 30 * mm, 20 * mm, 16 * mm, 28 * mm, 18 * mm]
-    return table(out, widths, own, bad)
+    widths = [16 * mm, 46 * mm, 30 * mm, 20 * mm, 16 * mm, 28 * mm, 18 * mm]
+    return table(out, widths, own, bad, wrap=(0, 1, 2))
 
 
 def charts(data: ReportData) -> list[Flowable]:

@@ -15,6 +15,7 @@ from django.utils.html import format_html
 
 from common import numbers
 from common.points import format_number, point_label
+from common.quantities import unit_text, with_unit
 from labs.access import managed_labs
 from labs.models import Enrolment, Laboratory, Participant, Submission
 from labs.notices import notices_unread_count
@@ -162,12 +163,13 @@ def statistic(value: float | None, digits: int = 3) -> str:
 @register.filter
 def entered_u(result: Any) -> str:
     """A result's U as the laboratory wrote it: ``1.2 % (5.0 mV/(m/s²))`` for a relative U
-    (the absolute value in brackets, rounded), else the absolute U rounded."""
+    (the absolute value in brackets, rounded, its unit as people read it:
+    ``0.5 % (0.071 D/(°/s))``), else the absolute U rounded."""
     absolute = numbers.uncertainty(result.expanded_uncertainty)
     entered = getattr(result, "expanded_uncertainty_entered", "")
     if not entered:
         return absolute
-    return f"{entered} ({absolute} {result.unit})"
+    return f"{entered} ({with_unit(absolute, result.unit)})"
 
 
 def _path(item: Any, path: str) -> Any:
@@ -186,11 +188,23 @@ def unit_of(items: Iterable[Any], path: str = "unit") -> str:
 
 @register.simple_tag
 def unit_heading(unit: str) -> str:
-    """`` (mV/(m/s²))`` after a column heading, or `` (unit in each row)`` for a table of
-    several units."""
+    """`` (mV/(m/s²))`` after a column heading (``°`` for degrees:
+    ``common.quantities.unit_text``), or `` (unit in each row)`` for a table of several
+    units."""
     if unit:
-        return format_html(' <span class="fw-normal text-nowrap d-block small">({})</span>', unit)
+        return format_html(
+            ' <span class="fw-normal text-nowrap d-block small">({})</span>', unit_text(unit)
+        )
     return format_html(' <span class="fw-normal small">{}</span>', "(unit in each row)")
+
+
+@register.simple_tag
+def unit_after(unit: str) -> str:
+    """A cell's unit right after its number, as written (docs/domain.md §3.1): ``°`` with
+    no space (``-1.92°``), any other unit after a space (``418.2 D/(m/s^2)``)."""
+    shown = unit_text(unit)
+    gap = "" if shown == "°" else " "
+    return format_html('{}<span class="small text-body-secondary">{}</span>', gap, shown)
 
 
 @register.filter

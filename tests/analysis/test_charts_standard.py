@@ -176,6 +176,23 @@ def test_mandel_bars_grouped_by_point_with_indicator_lines():
     assert "not available: unequal numbers of repeats" in none
 
 
+def test_mandel_point_names_stand_on_short_lines():
+    """A point's label with its kind, upright under its bars, is broken at its "·" into
+    lines of at most 24 characters, so the plot keeps its height (docs/domain.md §11.5)."""
+    points = [
+        "Z · 5 Hz · curvilinear tangential · angular-rate sensitivity",
+        "Z · 10 Hz · linear vertical · sensitivity phase",
+        "Z · 5 Hz · linear vertical",
+    ]
+    h = np.array([[1.0, 0.5, 0.2], [-0.5, -0.5, -0.1], [-0.5, 0.0, -0.1]])
+    fig = std.mandel_figure(["A", "B", "C"], points, h, [1.15] * 3, [1.4] * 3, statistic="h")
+    assert ticks(fig.axes[0]) == [
+        "Z · 5 Hz\ncurvilinear tangential\nangular-rate sensitivity",
+        "Z · 10 Hz\nlinear vertical\nsensitivity phase",
+        "Z · 5 Hz\nlinear vertical",  # 26 characters
+    ]  # fmt: skip
+
+
 def test_lab_overview_groups_points_and_skips_missing_z():
     points = ["X 5 Hz up", "X 8 Hz up", "Y 5 Hz up"]
     fig = std.lab_overview_figure(points, ["MEMS 1 · linear"] * 2 + ["MEMS 2 · linear"],

@@ -173,7 +173,7 @@ def test_a_table_of_two_kinds_writes_each_rows_unit(client, django_capture_on_co
     html = client.get(f"/coordinator/{r['comparison'].code}/results/kits/").content.decode()
     table = html[html.index("Each participant's kit") :]
     assert table[: table.index("</thead>")].count("(unit in each row)") == 5
-    for point, unit in ((0, "D/(m/s^2)"), (1, "D/(deg/s)")):
+    for point, unit in ((0, "D/(m/s^2)"), (1, "D/(°/s)")):  # stored D/(deg/s), shown with °
         k = row_of(r, "L5", point)
         assert k.linked_d is not None and k.linked_u is not None
         d = numbers.round_to_uncertainty(k.linked_d, 2 * k.linked_u, sign=True)
@@ -183,7 +183,8 @@ def test_a_table_of_two_kinds_writes_each_rows_unit(client, django_capture_on_co
 def test_the_summary_report_gives_the_largest_u_link_per_unit(django_capture_on_commit_callbacks):
     """A kit round of a magnitude and an angular rate: the summary report's largest u_link of
     a laboratory is one per unit, named (a magnitude's D/(m/s^2) and an angular rate's
-    D/(deg/s) are not compared); a round of one unit keeps its bare number (above)."""
+    D/(deg/s), written D/(°/s), are not compared); a round of one unit keeps its bare number
+    (above)."""
     r = make_round()
     rate = r["points"][1]
     rate.quantity = "angular_rate"
@@ -199,5 +200,5 @@ def test_the_summary_report_gives_the_largest_u_link_per_unit(django_capture_on_
     assert all(u is not None for u in per_unit)
     row = summary[summary.index("L5 Kit B") : summary.index("L6 Kit B")]
     cells = {f"{numbers.uncertainty(per_unit[0])} D/(m/s^2)",
-             f"{numbers.uncertainty(per_unit[1])} D/(deg/s)"}  # fmt: skip
+             f"{numbers.uncertainty(per_unit[1])} D/(°/s)"}  # fmt: skip
     assert all(c in row for c in cells) and row.count("; ") == 1

@@ -120,7 +120,7 @@ def test_phases_pointing_every_way_are_named_not_averaged():
     table = ResultTable.from_rows(rows([0.0, 120.0, -120.0], [1.0, 1.0, 1.0]))
     with pytest.raises(CoreInputError, match="point in every direction") as caught:
         analyse(table, AssignedSpec.parse("weighted-mean"))
-    assert "MEMS 1 X 80 Hz curvilinear tangential phase" in str(caught.value)
+    assert "MEMS 1 X 80 Hz curvilinear tangential sensitivity phase" in str(caught.value)
     # a reference laboratory needs no centre: it is scored
     a = analyse(table, AssignedSpec.parse("reference:L01"))
     np.testing.assert_allclose(a.scores.d, [0.0, 120.0, -120.0], atol=1e-12)

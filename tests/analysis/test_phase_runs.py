@@ -166,7 +166,7 @@ def test_scores_api_filters_by_quantity_and_the_scores_page_names_the_kind(round
     page = client.get(f"/coordinator/{comparison.code}/scores/?quantity=phase")
     assert page.status_code == 200
     body = page.content.decode()
-    assert body.count("tangential · phase") == 3
+    assert body.count("tangential · sensitivity phase") == 3
 
 
 def test_the_assigned_values_of_a_magnitude_and_a_phase_are_not_under_one_unit(round_):
@@ -184,4 +184,4 @@ def test_the_assigned_values_of_a_magnitude_and_a_phase_are_not_under_one_unit(r
     phase = AssignedValue.objects.get(run=run, measurement_point=points["phase"])
     assert 1.95 <= phase.expanded_uncertainty < 2.05  # U = 2.0°: x_pt to 0.1° (§3.1)
     shown = f"{phase.value:.1f}"
-    assert f'{shown} <span class="small text-body-secondary">°</span>' in table
+    assert f'{shown}<span class="small text-body-secondary">°</span>' in table  # no space

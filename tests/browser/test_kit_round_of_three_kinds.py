@@ -25,7 +25,7 @@ from tests.browser.test_two_bench_round import NOISE, PASSWORD, _sign_in
 
 pytestmark = [pytest.mark.browser, pytest.mark.django_db(transaction=True)]
 
-RATE_POINT = "IMU 1, Z, 5 Hz, curvilinear tangential, angular_rate"
+RATE_POINT = "IMU 1, Z, 5 Hz, curvilinear tangential, angular-rate sensitivity"
 
 
 def _places(u: float) -> int:
@@ -101,12 +101,12 @@ def test_a_kit_round_of_three_kinds_from_the_kits_to_the_published_scores(
     # the reference laboratory's phase (through the circular mean: to rounding), −360°·f·1.1 ms
     assert phase.value == pytest.approx(pilot_phase.value, abs=1e-9) and -9 < phase.value < -7
     assert phase.expanded_uncertainty == pilot_phase.expanded_uncertainty
-    row = page.locator("table tbody tr").filter(has_text="vertical · phase")
+    row = page.locator("table tbody tr").filter(has_text="vertical · sensitivity phase")
     row = row.filter(has=page.locator("td", has_text=re.compile(r"^20$")))
     row = row.filter(has_text="IMU 2")
     # U = 0.xx° → x_pt to 0.01°
     shown_u = f"{pilot_phase.expanded_uncertainty:.2f}"
-    expect(row).to_contain_text(f"{phase.value:.2f} °")
+    expect(row).to_contain_text(f"{phase.value:.2f}°")  # no space before °
     expect(row).to_contain_text(shown_u)
     _no_noise(page)
     shots(page, "coordinator-assigned-values")
@@ -119,7 +119,7 @@ def test_a_kit_round_of_three_kinds_from_the_kits_to_the_published_scores(
     assert score.d == pytest.approx(score.result.value - phase.value, abs=1e-9)
     assert abs(score.d) > 0.1  # a D that shows its sign
     page.goto(f"{base}/coordinator/{CODE}/scores/?quantity=phase&lab={last.code}")
-    expect(page.locator("thead")).to_contain_text("D (deg)")
+    expect(page.locator("thead")).to_contain_text("D (°)")
     row = (
         page.locator("table tbody tr")
         .filter(has_text="IMU 2")

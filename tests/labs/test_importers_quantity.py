@@ -141,7 +141,7 @@ def test_a_comparison_context_matches_the_row_of_its_kind_only():
     scoped = context.with_scope([magnitude], "magnitudes only")
     found = errors(table(row_with(quantity="phase", sensitivity="1")), context=scoped)
     assert found == [
-        (2, None, "MEMS 1, X, 10 Hz, linear vertical, phase is not in your scope "
+        (2, None, "MEMS 1, X, 10 Hz, linear vertical, sensitivity phase is not in your scope "
          "(magnitudes only)")
     ]  # fmt: skip
 

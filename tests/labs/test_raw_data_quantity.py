@@ -160,7 +160,7 @@ def test_the_page_upload_of_a_phase_point_shows_the_kind_and_the_wrapped_differe
                                          frequency_hz=80)  # fmt: skip
     client.force_login(lab["user"])
     form = client.get(f"/lab/comparisons/{CODE}/raw-data/").content.decode()
-    assert f'value="{point.pk}"' in form and "80 Hz, linear vertical, phase" in form
+    assert f'value="{point.pk}"' in form and "80 Hz, linear vertical, sensitivity phase" in form
     with django_capture_on_commit_callbacks(execute=True):
         response = client.post(f"/lab/comparisons/{CODE}/raw-data/", {"point": point.pk,
                                **upload_fields(dut, ref)})  # fmt: skip
