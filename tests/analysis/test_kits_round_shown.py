@@ -105,7 +105,7 @@ def test_the_charts_draw_one_kind_on_one_axis(client, kits):
     client.force_login(get_user_model().objects.get(username="curvilinear-lab"))
     grid = get(client, f"/lab/comparisons/{CODE}/results/")
     assert (
-        '<th colspan="8" scope="rowgroup">IMU 1 · curvilinear bench, tangential · angular-rate '
+        ' scope="rowgroup">IMU 1 · curvilinear bench, tangential · angular-rate '
         'sensitivity <span class="fw-normal text-body-secondary small">· D/(°/s)</span></th>'
     ) in grid
     assert RAW.findall(visible(grid)) == []
@@ -132,18 +132,22 @@ def test_the_report_names_the_kind_writes_degrees_and_keeps_its_cells(kits, tmp_
         first, *rest = map(re.escape, lines)
         row = rf"\n IMU 1 +{first} +{re.escape(x_pt)} +{re.escape(u)} .*"
         assert re.search(row + "".join(rf"\n +{line}" for line in rest) + r"\n", text), kind
-    # the largest u_link per unit, the angular rate's with ° (stored D/(deg/s)): of a Kit B
-    # laboratory at all 18 points, and named too for the linear bench's one unit
+    # the largest u_link per unit, the angular rate's with ° (stored D/(deg/s)), the phase's
+    # in degrees: of a Kit B laboratory at all 18 points (phases linked too), and named too
+    # for the linear bench's units, in the stored units' order
     (alpine, at_alpine), (linear, at_linear) = (
         largest_u_link(run, n) for n in (ALPINE, LINEAR_LAB)
     )
-    both = (f"{numbers.uncertainty(at_alpine['D/(deg/s)'])} D/(°/s); "
-            f"{numbers.uncertainty(at_alpine['D/(m/s^2)'])} D/(m/s^2)")  # fmt: skip
-    one = f"{numbers.uncertainty(at_linear['D/(m/s^2)'])} D/(m/s^2)"
-    row = r"\n +{} +Kit {} +{} +6 +[\d.]+ +{}\n"
-    assert re.search(row.format(alpine, "B", 12, re.escape(both)), text)
-    assert set(at_linear) == {"D/(m/s^2)"}
-    assert re.search(row.format(linear, "A", 6, re.escape(one)), text)
+
+    def per_unit(largest: dict[str, float]) -> str:
+        shown = {"D/(deg/s)": " D/(°/s)", "D/(m/s^2)": " D/(m/s^2)", "deg": "°"}
+        return "; ".join(f"{numbers.uncertainty(largest[u])}{shown[u]}" for u in sorted(largest))
+
+    assert set(at_alpine) == {"D/(deg/s)", "D/(m/s^2)", "deg"}
+    assert set(at_linear) == {"D/(m/s^2)", "deg"}
+    row = r"\n +{} +Kit {} +{} +0 +[\d.]+ +{}\n"
+    assert re.search(row.format(alpine, "B", 18, re.escape(per_unit(at_alpine))), text)
+    assert re.search(row.format(linear, "A", 12, re.escape(per_unit(at_linear))), text)
     for who in (None, kits.participants.get(code=alpine)):
         assert_cells_fit(story(report_data(run=run, participant=who)))
 
