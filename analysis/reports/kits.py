@@ -61,8 +61,9 @@ def kit_section_of_run(run: AnalysisRun, index: dict[int, int]) -> KitSection | 
     treatment = str(run.parameters.get("drift_treatment") or run.comparison.drift_treatment)
     drifting = sum(d.model == "linear" for d in drift)
     text = (
-        f"The pilot's repeat measurements judged {counted(len(drift), 'kit and point')} "
-        f"(a line where its slope is significant at 5 %): {drifting} drifting. Where a kit "
+        f"The pilot's repeat measurements judged {counted(len(drift), 'series', 'series')} "
+        "of one kit at one point, each a line where its slope is significant at 5 %: "
+        f"{drifting} drifting. Where a kit "
         f"drifts, {_TREATMENT.get(treatment, treatment)}; elsewhere nothing changed."
     )
     if linked:
