@@ -135,7 +135,7 @@ def test_a_kit_round_of_three_kinds_from_the_kits_to_the_published_scores(
     page.goto(f"{base}/coordinator/{CODE}/results/")
     page.get_by_role("link", name="Kits and linking").click()
     # a phase point is linked too, on its phases laid on a line (docs/domain.md §14)
-    phase_row = page.locator("tr").filter(has_text="linear vertical, phase")
+    phase_row = page.locator("tr").filter(has_text="linear vertical, sensitivity phase")
     expect(phase_row.filter(has_text="pilot").first).to_be_visible()
     drift = page.locator("tr").filter(has_text=RATE_POINT).filter(has_text="Kit B")
     expect(drift.first).to_contain_text("drifting")
