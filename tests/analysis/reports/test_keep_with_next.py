@@ -11,7 +11,7 @@ from analysis.reports import render
 from analysis.reports.data import HistoryPoint, HistoryRound, ReportData, ReportHistory
 from analysis.reports.render import render_report
 from tests.analysis.reports.conftest import pdf_text
-from tests.analysis.reports.test_visual import small_report
+from tests.analysis.reports.test_visual import small_round
 
 INTRO = "Your laboratory took part in 3 rounds up to this one."
 FIRST_ROW = "R-2021-FIRST"
@@ -24,7 +24,7 @@ def with_history(pad: int) -> ReportData:
     )
     history = ReportHistory(rounds, (HistoryPoint("LSM6DSR, X, 5 Hz", 3, 0.5, "S", 0.9, "S"),))
     address = " ".join(["Street"] * pad)  # wraps in the title table: a line per ~15 words
-    return dataclasses.replace(small_report(), history=history, provider_address=address)
+    return dataclasses.replace(small_round(), history=history, provider_address=address)
 
 
 def split_at(pads: range) -> list[int]:

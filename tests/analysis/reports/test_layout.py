@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from analysis.reports.data import AssignedRow, MatrixData, ResultRow, ScoreRow
 from analysis.reports.render import render_report
 from tests.analysis.reports.conftest import pdftotext, words
-from tests.analysis.reports.test_visual import small_report
+from tests.analysis.reports.test_visual import small_report, small_round
 
 MATRIX = MatrixData("lab", "all", ("a", "b"), (418.0, 419.4684), (0.011, 1.0),
                     ((0.0, 0.1), (0.1, 0.0)), 0)  # fmt: skip
@@ -86,7 +86,7 @@ def page_ends(pdf: bytes, tmp_path) -> list[str]:
 
 def padded(words_: int) -> bytes:
     text = " ".join(["padding"] * words_)
-    return render_report(dataclasses.replace(small_report(), protocol_description=text))
+    return render_report(dataclasses.replace(small_round(), protocol_description=text))
 
 
 def orphans(tmp_path, pads: range) -> Iterator[tuple[int, str]]:
