@@ -59,13 +59,14 @@ def module_world(django_db_setup, django_db_blocker, tmp_path_factory) -> Iterat
     media = tmp_path_factory.mktemp("world") / "media"
     eager = app.conf.task_always_eager
     with django_db_blocker.unblock():
-        atomics = TestCase._enter_atomics()  # marked as the test case's: durable blocks pass
+        # Django's TestCase atomics (durable blocks inside them pass); not in django-stubs
+        atomics = TestCase._enter_atomics()  # type: ignore[attr-defined]
         try:
             app.conf.task_always_eager = True
             with override_settings(MEDIA_ROOT=media, **BUILD_SETTINGS):
                 built = build_world(TestCase.captureOnCommitCallbacks)
         except BaseException:
-            TestCase._rollback_atomics(atomics)
+            TestCase._rollback_atomics(atomics)  # type: ignore[attr-defined]
             raise
         finally:
             app.conf.task_always_eager = eager
@@ -73,7 +74,7 @@ def module_world(django_db_setup, django_db_blocker, tmp_path_factory) -> Iterat
         yield built, media
     finally:
         with django_db_blocker.unblock():
-            TestCase._rollback_atomics(atomics)
+            TestCase._rollback_atomics(atomics)  # type: ignore[attr-defined]
 
 
 def _transactional(request: pytest.FixtureRequest) -> bool:
