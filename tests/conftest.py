@@ -195,3 +195,23 @@ def needs_postgres():
     if os.environ.get("REQUIRE_SERVICES") == "1":
         pytest.fail(message)
     pytest.skip(message)
+
+
+def stand_in_pdf_bytes(data) -> bytes:
+    """A stand-in for a report's PDF: its report number (with its edition, ``-v2``), status
+    and count of result rows, readable in the stored file."""
+    return f"%PDF-1.4 stand-in {data.report_number} {data.status} {len(data.results)}".encode()
+
+
+@pytest.fixture
+def stand_in_pdf(monkeypatch) -> None:
+    """Reports issued with :func:`stand_in_pdf_bytes` instead of reportlab's rendering (a
+    second or so a report): for the tests that need reports to exist (rows, files, access,
+    fan-out) and never read their pages. The rendering itself is checked by the tests that
+    read the PDFs' text (tests/analysis/reports)."""
+    use_stand_in_pdf(monkeypatch)
+
+
+def use_stand_in_pdf(monkeypatch: pytest.MonkeyPatch) -> None:
+    """From here on in the test, reports are issued with :func:`stand_in_pdf_bytes`."""
+    monkeypatch.setattr("analysis.reports.services.render_report", stand_in_pdf_bytes)

@@ -22,6 +22,7 @@ from analysis.services import analysis_run_start, analysis_sweep
 from common import jobs
 from labs.models import Notice
 from tests.analysis.reports.conftest import published_missing_reports
+from tests.conftest import use_stand_in_pdf
 
 pytestmark = pytest.mark.django_db(transaction=True)
 REFUSED = "Error 111 connecting to 127.0.0.1:6399. Connection refused."
@@ -39,13 +40,6 @@ def broker_down(monkeypatch, task_path: str) -> list[tuple]:
 
     monkeypatch.setattr(f"{task_path}.apply_async", refused)
     return attempts
-
-
-def stand_in_pdf(monkeypatch) -> None:
-    monkeypatch.setattr(
-        "analysis.reports.services.render_report",
-        lambda data: f"%PDF-1.4 {data.report_number} {data.status}".encode(),
-    )
 
 
 class Task:
@@ -144,7 +138,7 @@ def test_a_publication_whose_task_cannot_be_sent_fails_and_publishes_nothing(
 ):
     """The job fails at once with the reason (never pending for ever, blocking the next
     request); the round stays analysed, nobody is told; publishing again works."""
-    stand_in_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     analysis_run_start(comparison=demo, user=None)
     attempts = broker_down(monkeypatch, "analysis.tasks.publication_task")
     with caplog.at_level(logging.ERROR, logger="common.jobs"):
@@ -157,7 +151,7 @@ def test_a_publication_whose_task_cannot_be_sent_fails_and_publishes_nothing(
     assert demo.status == "analysed"
     assert not Report.objects.exists() and not Notice.objects.filter(kind="published").exists()
     monkeypatch.undo()  # the broker is back
-    stand_in_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     again = publication_start(comparison=demo)
     again.refresh_from_db()
     assert again.status == "succeeded" and again.pk != job.pk
@@ -166,7 +160,7 @@ def test_a_publication_whose_task_cannot_be_sent_fails_and_publishes_nothing(
 def test_a_published_rounds_missing_reports_wait_for_the_broker(demo, monkeypatch, caplog):
     """The published comparison still missing reports is the outbox: the beat task sends
     the fan-out once the broker is back, and the fan-out makes the batch rows then."""
-    stand_in_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     analysis_run_start(comparison=demo, user=None)
     published = published_missing_reports(demo)
     attempts = broker_down(monkeypatch, "analysis.reports.tasks.reports_issue_all_task")
@@ -179,7 +173,7 @@ def test_a_published_rounds_missing_reports_wait_for_the_broker(demo, monkeypatc
     assert reports_missing(published) == 13
     assert reports_pending_enqueue() == 0  # still down: nothing sent, nothing lost
     monkeypatch.undo()  # the broker is back
-    stand_in_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     assert reports_pending_enqueue() == 1
     assert reports_missing(published) == 0
     assert Report.objects.filter(status="final", superseded=False).count() == 13

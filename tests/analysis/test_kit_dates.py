@@ -74,6 +74,23 @@ def run_of(django_capture_on_commit_callbacks):
     return lambda comparison: started(comparison, django_capture_on_commit_callbacks)
 
 
+@pytest.fixture
+def drifting(db):
+    """The round with Kit A, drifting 0.02 a day, passed through every laboratory; its
+    slots in their order."""
+    r = make_round()
+    r["kit"] = add_kit(r, "Kit A", r["labs"], drift=0.02)
+    r["slots"] = list(KitSlot.objects.filter(kit=r["kit"]).order_by("position"))
+    return r
+
+
+def _states(code: str, point, on: dt.date) -> None:
+    """``code`` states it measured ``point`` on ``on``."""
+    Result.objects.filter(measurement_point=point, submission__participant__code=code).update(
+        measured_on=on
+    )
+
+
 def _fit(kit, point):
     """Slope, u(slope) and t̄ of the pilot's repeats (equal u: the plain polyfit, the
     Birge ratio inflating u(b) where the scatter exceeds U/k)."""
@@ -101,13 +118,12 @@ def _pass_on(kit, slots, to: int, arrived: dt.datetime) -> None:
 
 
 @pytest.mark.django_db
-def test_a_late_dispatch_does_not_move_the_date(run_of):
+def test_a_late_dispatch_does_not_move_the_date(drifting, run_of):
     """L1 received the kit on the first day of its slot and kept it three weeks past the
     slot's end: its date stays the slot's middle, u_t = 10 d/√12 (the kit's logged
     departure would have moved it ten days later and made u_t three times larger)."""
-    r = make_round()
-    kit = add_kit(r, "Kit A", r["labs"], drift=0.02)
-    slots = list(KitSlot.objects.filter(kit=kit).order_by("position"))
+    r = drifting
+    kit, slots = r["kit"], r["slots"]
     _pass_on(kit, slots, 1, noon(slots[1].starts_on))
     handover_dispatch(kit=kit, from_slot=slots[1], user=None,
                       at=noon(slots[1].ends_on + dt.timedelta(days=21)))  # fmt: skip
@@ -126,12 +142,11 @@ def test_a_late_dispatch_does_not_move_the_date(run_of):
 
 
 @pytest.mark.django_db
-def test_a_kit_that_came_after_its_slot_is_dated_by_its_log(run_of):
+def test_a_kit_that_came_after_its_slot_is_dated_by_its_log(drifting, run_of):
     """L1's kit arrived four days after its slot ended and left six days later: it was
     measured between the two, t = arrival + 3 d, u_t = 6 d/√12."""
-    r = make_round()
-    kit = add_kit(r, "Kit A", r["labs"], drift=0.02)
-    slots = list(KitSlot.objects.filter(kit=kit).order_by("position"))
+    r = drifting
+    kit, slots = r["kit"], r["slots"]
     came = slots[1].ends_on + dt.timedelta(days=4)
     _pass_on(kit, slots, 1, noon(came))
     handover_dispatch(kit=kit, from_slot=slots[1], user=None,
@@ -148,15 +163,11 @@ def test_a_kit_that_came_after_its_slot_is_dated_by_its_log(run_of):
 
 
 @pytest.mark.django_db
-def test_a_stated_date_is_used_with_no_uncertainty_of_its_own(run_of):
-    r = make_round()
-    kit = add_kit(r, "Kit A", r["labs"], drift=0.02)
+def test_a_stated_date_is_used_with_no_uncertainty_of_its_own(drifting, run_of):
+    r, kit, point = drifting, drifting["kit"], drifting["points"][0]
     slot = KitSlot.objects.get(kit=kit, participant__code="L2")
-    point = r["points"][0]
     on = slot.starts_on + dt.timedelta(days=3)
-    Result.objects.filter(measurement_point=point, submission__participant__code="L2").update(
-        measured_on=on
-    )
+    _states("L2", point, on)
     run = run_of(r["comparison"])
     b, u_b, t_mean = _fit(kit, point)
     t = on.toordinal() + 0.5
@@ -178,15 +189,11 @@ def test_a_stated_date_is_used_with_no_uncertainty_of_its_own(run_of):
 
 
 @pytest.mark.django_db
-def test_a_stated_date_outside_the_holding_is_kept_and_named(run_of):
-    r = make_round()
-    kit = add_kit(r, "Kit A", r["labs"], drift=0.02)
+def test_a_stated_date_outside_the_holding_is_kept_and_named(drifting, run_of):
+    r, kit, point = drifting, drifting["kit"], drifting["points"][1]
     slot = KitSlot.objects.get(kit=kit, participant__code="L3")
-    point = r["points"][1]
     on = slot.ends_on + dt.timedelta(days=5)
-    Result.objects.filter(measurement_point=point, submission__participant__code="L3").update(
-        measured_on=on
-    )
+    _states("L3", point, on)
     run = run_of(r["comparison"])
     b, _, t_mean = _fit(kit, point)
     ks = _kit_score(run, point, "L3")
@@ -202,13 +209,12 @@ def test_a_stated_date_outside_the_holding_is_kept_and_named(run_of):
 
 
 @pytest.mark.django_db
-def test_kept_constant_the_date_uncertainty_adds_to_u_stab(run_of):
+def test_kept_constant_the_date_uncertainty_adds_to_u_stab(drifting, run_of):
     """u_stab treatment: u_drift² = u_stab(t)² + b²·u_t², u_stab(t) = |b·(t − t̄)|/√3."""
-    r = make_round()
+    r, kit = drifting, drifting["kit"]
     c = r["comparison"]
     c.drift_treatment = "u_stab"
     c.save(update_fields=["drift_treatment"])
-    kit = add_kit(r, "Kit A", r["labs"], drift=0.02)
     run = run_of(c)
     point = r["points"][0]
     b, _, t_mean = _fit(kit, point)

@@ -160,10 +160,11 @@ def test_chi2_is_written_to_three_significant_digits(client, linked):
     assert f'<td class="num">{numbers.significant(fit.chi2, 3)}</td>' in html
 
 
-def test_a_table_of_two_kinds_writes_each_rows_unit(client, django_capture_on_commit_callbacks):
-    """A kit round of a magnitude and an angular rate: the participants' table has no one
-    unit, so the headings say each row has its own and each d carries it (it once said so
-    and showed none)."""
+@pytest.fixture
+def two_kinds():
+    """A kit round of a magnitude (point 0) and an angular rate (point 1, in D/(deg/s)): Kit A
+    with the first three laboratories, Kit B (offset, no drift) with the other four; not yet
+    analysed."""
     r = make_round()
     rate = r["points"][1]
     rate.quantity = "angular_rate"
@@ -171,6 +172,16 @@ def test_a_table_of_two_kinds_writes_each_rows_unit(client, django_capture_on_co
     Result.objects.filter(measurement_point=rate).update(unit="D/(deg/s)")
     add_kit(r, "Kit A", r["labs"][:3])
     add_kit(r, "Kit B", r["labs"][3:], offset=0.6)
+    return r
+
+
+def test_a_table_of_two_kinds_writes_each_rows_unit(
+    client, two_kinds, django_capture_on_commit_callbacks
+):
+    """A kit round of a magnitude and an angular rate: the participants' table has no one
+    unit, so the headings say each row has its own and each d carries it (it once said so
+    and showed none)."""
+    r = two_kinds
     coordinator = UserFactory.create()
     r["comparison"].coordinators.add(coordinator)
     r["run"] = started(r["comparison"], django_capture_on_commit_callbacks)
@@ -185,18 +196,14 @@ def test_a_table_of_two_kinds_writes_each_rows_unit(client, django_capture_on_co
         assert f'{d} <span class="small text-body-secondary">{unit}</span>' in table
 
 
-def test_the_summary_report_gives_the_largest_u_link_per_unit(django_capture_on_commit_callbacks):
+def test_the_summary_report_gives_the_largest_u_link_per_unit(
+    two_kinds, django_capture_on_commit_callbacks
+):
     """A kit round of a magnitude and an angular rate: the summary report's largest u_link of
     a laboratory is one per unit, named (a magnitude's D/(m/s^2) and an angular rate's
     D/(deg/s), written D/(°/s), are not compared); a round of one unit keeps its bare number
     (above)."""
-    r = make_round()
-    rate = r["points"][1]
-    rate.quantity = "angular_rate"
-    rate.save(update_fields=["quantity"])
-    Result.objects.filter(measurement_point=rate).update(unit="D/(deg/s)")
-    add_kit(r, "Kit A", r["labs"][:3])
-    add_kit(r, "Kit B", r["labs"][3:], offset=0.6)
+    r = two_kinds
     run = started(r["comparison"], django_capture_on_commit_callbacks)
     clear_run_contexts()
     summary = " ".join("\n".join(pdf_text(render_report(report_data(run=run)))).split())

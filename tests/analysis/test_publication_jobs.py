@@ -22,6 +22,7 @@ from analysis.tasks import jobs_sweep_task, publication_task
 from labs.models import Notice
 from proficiency.models import Comparison
 from proficiency.services import comparison_transition
+from tests.conftest import stand_in_pdf_bytes
 from tests.factories import ComparisonFactory, UserFactory
 
 CODE = "IMU-2024-DEMO"
@@ -54,7 +55,7 @@ def stand_in(monkeypatch):
         job = Publication.objects.order_by("-pk").first()
         status = Comparison.objects.get(code=CODE).status
         seen.append((data.own_code, data.status, job.progress if job else None, status))
-        return f"%PDF-1.4 {data.report_number} {data.status}".encode()
+        return stand_in_pdf_bytes(data)
 
     monkeypatch.setattr("analysis.reports.services.render_report", render)
     return seen
@@ -143,7 +144,7 @@ def test_a_rendering_failure_publishes_nothing_and_the_coordinator_can_try_again
         if data.own_code == broken:
             raise RuntimeError("the disk is full")
         rendered.append(data.own_code)
-        return f"%PDF-1.4 {data.report_number} {data.status}".encode()
+        return stand_in_pdf_bytes(data)
 
     monkeypatch.setattr("analysis.reports.services.render_report", render)
     signed_in(client, "coordinator")

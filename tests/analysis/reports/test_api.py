@@ -20,15 +20,6 @@ def client(username=None):
 
 
 @pytest.fixture
-def fast_render(monkeypatch):
-    """Access tests need reports, not their layout: a stand-in PDF per report number."""
-    monkeypatch.setattr(
-        "analysis.reports.services.render_report",
-        lambda data: b"%PDF-1.4 stand-in " + data.report_number.encode(),
-    )
-
-
-@pytest.fixture
 def published(analysed):
     response = client("coordinator").post(f"/api/v1/comparisons/{CODE}/publish/")
     assert response.status_code == 202, response.content  # the job, done by eager Celery
@@ -49,7 +40,7 @@ def test_publishing_issues_summary_and_every_participant_report(published):
     assert "Final" in pdf_text(summary.file.read())[0]
 
 
-def test_participant_sees_summary_and_own_report_only(fast_render, published):
+def test_participant_sees_summary_and_own_report_only(stand_in_pdf, published):
     listed = client("lab03").get(f"/api/v1/comparisons/{CODE}/reports/")
     assert listed.status_code == 200
     body = listed.json()
@@ -64,7 +55,7 @@ def test_participant_sees_summary_and_own_report_only(fast_render, published):
     assert ReportDownload.objects.filter(user__username="lab03").count() == 1
 
 
-def test_other_participants_report_is_not_found(fast_render, published):
+def test_other_participants_report_is_not_found(stand_in_pdf, published):
     theirs = Report.objects.get(kind="participant", participant__code=code_of("lab04"))
     url = f"/api/v1/reports/{theirs.token}/pdf"
     assert client("lab03").get(url).status_code == 404
@@ -81,7 +72,7 @@ def test_other_participants_report_is_not_found(fast_render, published):
     assert ReportDownload.objects.filter(laboratory=lab).count() == 1
 
 
-def test_coordinator_sees_all_and_can_issue(fast_render, published):
+def test_coordinator_sees_all_and_can_issue(stand_in_pdf, published):
     coord = client("coordinator")
     assert len(coord.get(f"/api/v1/comparisons/{CODE}/reports/").json()) == 13
     issued = coord.post(f"/api/v1/comparisons/{CODE}/reports/", {"kind": "summary"})
@@ -95,7 +86,7 @@ def test_coordinator_sees_all_and_can_issue(fast_render, published):
     assert client().get(f"/api/v1/comparisons/{CODE}/reports/").status_code == 401
 
 
-def test_no_reports_for_participants_before_publication(fast_render, analysed):
+def test_no_reports_for_participants_before_publication(stand_in_pdf, analysed):
     client("coordinator").post(f"/api/v1/comparisons/{CODE}/reports/", {"kind": "summary"})
     assert client("lab03").get(f"/api/v1/comparisons/{CODE}/reports/").json() == []
     token = Report.objects.get().token
@@ -103,7 +94,7 @@ def test_no_reports_for_participants_before_publication(fast_render, analysed):
     assert client("coordinator").get(f"/api/v1/reports/{token}/pdf").status_code == 200
 
 
-def test_reports_page(fast_render, published):
+def test_reports_page(stand_in_pdf, published):
     from django.test import Client
 
     web = Client()

@@ -22,6 +22,7 @@ from common.errors import ValidationFailed
 from labs.models import Laboratory, Participant, Result, Submission
 from proficiency.models import Comparison, Device
 from proficiency.services import measurement_points_generate
+from tests.conftest import use_stand_in_pdf
 
 pytestmark = pytest.mark.django_db(transaction=True)
 
@@ -38,13 +39,6 @@ def large(monkeypatch):
     """Every round counts as large: a participant report carries its own rows only."""
     monkeypatch.setattr(assemble, "FULL_TABLE_ROWS", 10)
     monkeypatch.setattr(sections, "FULL_TABLE_ROWS", 10)
-
-
-def fake_pdf(monkeypatch):
-    monkeypatch.setattr(
-        "analysis.reports.services.render_report",
-        lambda data: f"%PDF-1.4 {data.report_number} {len(data.results)}".encode(),
-    )
 
 
 def make_round(code: str, n_labs: int, n_freqs: int = 3) -> Comparison:
@@ -88,7 +82,7 @@ def test_batches_cover_every_participant_in_code_order(analysed):
     assert [pk for b in batches for pk in b] == codes
 
 
-def test_fan_out_sends_the_summary_and_one_task_per_batch(analysed, settings):
+def test_fan_out_sends_the_summary_and_one_task_per_batch(stand_in_pdf, analysed, settings):
     settings.REPORTS_BATCH_SIZE = 5
     assert reports_issue_all_task(analysed.comparison.pk) == 13  # eager: issued inline
     reports = Report.objects.filter(comparison=analysed.comparison, superseded=False)
@@ -98,7 +92,7 @@ def test_fan_out_sends_the_summary_and_one_task_per_batch(analysed, settings):
 
 
 def test_a_batch_delivered_twice_issues_each_report_once(monkeypatch, analysed):
-    fake_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     parts = list(analysed.comparison.participants.order_by("code").values_list("pk", flat=True))
     batch = parts[:5]
     # a report of the batch already issued (e.g. by a batch lost half-way through)
@@ -115,7 +109,7 @@ def test_a_batch_delivered_twice_issues_each_report_once(monkeypatch, analysed):
 
 
 def test_a_batch_of_a_stale_run_issues_nothing(monkeypatch, analysed):
-    fake_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     analysis_run_start(comparison=analysed.comparison, user=None)  # a newer run is current
     ids = list(analysed.comparison.participants.values_list("pk", flat=True)[:3])
     assert report_issue_batch(run_id=analysed.pk, participant_ids=ids) == []
@@ -123,7 +117,7 @@ def test_a_batch_of_a_stale_run_issues_nothing(monkeypatch, analysed):
 
 
 def test_a_batch_refuses_a_participant_of_another_comparison(monkeypatch, analysed):
-    fake_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     other = make_round("OTHER", 2, 1)
     stranger = other.participants.first()
     assert stranger is not None
@@ -133,7 +127,7 @@ def test_a_batch_refuses_a_participant_of_another_comparison(monkeypatch, analys
 
 
 def test_a_new_run_supersedes_through_a_batch(monkeypatch, analysed):
-    fake_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     part = analysed.comparison.participants.order_by("code").first()
     old = report_issue_batch(run_id=analysed.pk, participant_ids=[part.pk])
     analysis_run_start(comparison=analysed.comparison, user=None)
@@ -150,7 +144,7 @@ def test_a_new_run_supersedes_through_a_batch(monkeypatch, analysed):
 def test_a_batch_of_an_older_run_never_supersedes_a_newer_report(monkeypatch, analysed):
     """A batch still running when a new run became current (and its report was issued)
     leaves that report current."""
-    fake_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     part = analysed.comparison.participants.order_by("code").first()
     analysis_run_start(comparison=analysed.comparison, user=None)
     new_run = current_run(analysed.comparison)
@@ -207,7 +201,7 @@ def test_large_round_report_from_own_rows_equals_the_one_from_every_row(analysed
 
 
 def test_shared_data_is_read_once_per_run(monkeypatch, analysed, large):
-    fake_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     builds = []
     real = assemble._build_context
 
@@ -242,7 +236,7 @@ def statements(ctx: CaptureQueriesContext) -> list[str]:
 
 
 def test_queries_per_batch_do_not_grow_with_the_round(monkeypatch, large):
-    fake_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     small, big = make_round("SMALL", 8, 2), make_round("BIG", 40, 6)
     assert batch_queries(small, 3) == batch_queries(big, 3)
     cold, warm = batch_queries(make_round("MID", 20, 4), 4)
@@ -256,7 +250,7 @@ def test_queries_per_batch_do_not_grow_with_the_round(monkeypatch, large):
 
 
 def test_large_round_reads_own_rows_in_one_query(monkeypatch, analysed, large):
-    fake_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     run_context(analysed)  # warm
     ids = list(analysed.comparison.participants.order_by("code").values_list("pk", flat=True))
     with CaptureQueriesContext(connection) as ctx:
@@ -291,7 +285,7 @@ def test_a_large_rounds_first_batch_builds_every_point_chart(monkeypatch, large)
     """With at least as many participants as points, every point's chart is drawn with
     the process's first batch of the run (not in whichever later report first shows
     it), once: later batches draw none."""
-    fake_pdf(monkeypatch)  # the reports draw nothing themselves
+    use_stand_in_pdf(monkeypatch)  # the reports draw nothing themselves
     c = make_round("CHARTS", 8, 3)
     ids = list(c.participants.order_by("code").values_list("pk", flat=True))
     built = point_charts_built(monkeypatch)
@@ -304,7 +298,7 @@ def test_a_large_rounds_first_batch_builds_every_point_chart(monkeypatch, large)
 
 
 def test_a_round_with_fewer_participants_than_points_draws_charts_as_needed(monkeypatch, large):
-    fake_pdf(monkeypatch)
+    use_stand_in_pdf(monkeypatch)
     c = make_round("FEW", 4, 5)
     ids = list(c.participants.order_by("code").values_list("pk", flat=True))
     built = point_charts_built(monkeypatch)

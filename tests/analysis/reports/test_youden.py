@@ -39,11 +39,20 @@ def test_youden_plot_of_the_same_point_on_the_two_benches(run, tmp_path, monkeyp
 
     monkeypatch.setattr(charts.YoudenChart, "__init__", spy)
     charts.youden_chart.cache_clear()
-    participants = list(Participant.objects.filter(comparison=run.comparison).order_by("code"))
-    me = next(p for p in participants
-              if len({r.point for r in report_data(run=run, participant=p).results
-                      if r.lab == p.code}) > 1)  # fmt: skip
-    data = report_data(run=run, participant=me)
+    # the reader: the first laboratory by name that measured on both benches (the bench
+    # laboratories each ran one bench only; participant codes are drawn at random, so an
+    # order by code would pick a different reader, and sometimes a one-bench one, each run)
+    participants = Participant.objects.filter(comparison=run.comparison)
+    readers = (
+        report_data(run=run, participant=p)
+        for p in participants.select_related("laboratory").order_by("laboratory__name")
+    )
+    data = next(
+        d
+        for d in readers
+        if len({d.points[r.point].bench for r in d.results if r.lab == d.own_code}) > 1
+    )
+    me = next(p for p in participants if p.code == data.own_code)
     pair = youden_pair(data)
     assert pair is not None
     a, b = (data.points[i] for i in pair)
