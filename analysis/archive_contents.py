@@ -169,7 +169,7 @@ def _results_entry(audience: Audience, n_scores: int) -> Entry:
     whose = "your laboratory's results" if audience.participant else "every participant's results"
     return Entry(
         "results.csv",
-        f"{whose} that the run scored, as a results table (docs/interfaces.md §1): one row "
+        f"{whose} that the run scored, as a results table (the columns of an upload): one row "
         "per result, laboratories by participant code; the input of pt_compare",
         _large(write, n_scores),
     )
@@ -244,7 +244,7 @@ def _matrix_entry(run: AnalysisRun, factor: str) -> Entry:
 
     return Entry(
         f"matrices/{factor}.csv",
-        f"the compatibility matrices of the factor {factor} (docs/domain.md §6) in long form: "
+        f"the compatibility matrices of the factor {factor} in long form: "
         "per group, one row per pair of levels i < j with each level's value and U and "
         "their En",
         write,

@@ -572,7 +572,7 @@ class KitPointFit(models.Model):
     kit_values = models.JSONField(default=list, blank=True, help_text="kit, value, u per kit")
     drift = models.JSONField(
         default=list, blank=True,
-        help_text="per kit: n, model, slope and u(slope) per day, p, t̄, value, u (§13)",
+        help_text="per kit: n, model, slope and u(slope) per day, p, t̄, value, u",
     )  # fmt: skip
     unlinked = models.JSONField(
         default=list, blank=True, help_text="codes of the participants not linked to it"
@@ -604,7 +604,7 @@ class KitScore(models.Model):
     measured_on = models.DateField(
         null=True, blank=True,
         help_text="the date its drift was taken at: the stated date, else the midpoint of its "
-        "holding of the kit (docs/domain.md §13)",
+        "holding of the kit",
     )  # fmt: skip
     drift_correction = models.FloatField(
         default=0.0, help_text="added to the result: −b·(t − t̄) where corrected, else 0"
