@@ -210,7 +210,7 @@ class DriftRow:
     """One point of a kit: the pilot's repeats, the model chosen and what it means for the
     loop: the largest u the drift adds to an observation on this kit, were it not
     corrected (√(u_stab(t)² + b²·u_t²) at each date the analysis gives one, ``u_stab_max``),
-    and the point's quantity kind (``quantity``, for the unit of its numbers)."""
+    and the unit of the point's values (``unit``, as stored; the slope's is per day)."""
 
     label: str
     n: int
@@ -223,7 +223,11 @@ class DriftRow:
     u_slope: float
     p_value: float
     u_stab_max: float
-    quantity: str = quantities.MAGNITUDE
+    unit: str = ""
+
+    @property
+    def slope_unit(self) -> str:
+        return quantities.per_day(self.unit)
 
 
 def _series_values(series: list[KitMeasurement]) -> list[float]:
@@ -320,13 +324,13 @@ def _drift_row(fit: DriftFit, g: int, series: list[KitMeasurement],
     days, u_days = dated
     _, u_add = fit.at_date(np.full(len(days), g), days, u_days, correct=False)
     value = float(fit.value[g])
-    quantity = series[0].measurement_point.quantity
-    if quantities.is_circular(quantity):
+    point = series[0].measurement_point
+    if quantities.is_circular(point.quantity):
         value = float(wrap(value))
     return DriftRow(
-        label=str(series[0].measurement_point), n=int(fit.n[g]),
+        label=str(point), n=int(fit.n[g]),
         first=series[0].measured_on, last=series[-1].measured_on, model=fit.model[g],
         value=value, u_value=float(fit.u_value[g]), slope_per_day=float(fit.slope[g]),
         u_slope=float(fit.u_slope[g]), p_value=float(fit.p_value[g]),
-        u_stab_max=float(u_add.max()) if days else 0.0, quantity=quantity,
+        u_stab_max=float(u_add.max()) if days else 0.0, unit=point.value_unit,
     )  # fmt: skip
