@@ -162,6 +162,13 @@ def label_shown(name: str | None) -> str:
     return "" if (name or DEFAULT) == DEFAULT else kind(name).label
 
 
+def with_kind(text: str, name: str | None) -> str:
+    """``text`` followed by the kind's label where it is not the magnitude (``tangential,
+    sensitivity phase``), as a point's label names it; ``text`` alone for a magnitude."""
+    shown = label_shown(name)
+    return f"{text}, {shown}" if shown else text
+
+
 def shown_group(group: Mapping[str, object]) -> dict[str, object]:
     """A matrix's group keys as people read them: ``quantity`` only where it is not the
     magnitude, so a round of magnitudes reads as before kinds existed."""

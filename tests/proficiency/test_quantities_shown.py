@@ -141,3 +141,12 @@ def test_the_comparison_pages_write_the_devices_unit_with_a_square(client):
         assert page.status_code == 200
         html = page.content.decode()
         assert "418 D/(m/s²)" in html and "± 2.5 D/(m/s²)" in html and "m/s^2" not in html
+
+
+def test_a_text_names_the_kind_by_its_label():
+    assert quantities.with_kind("tangential", "angular_rate") == (
+        "tangential, angular-rate sensitivity"
+    )
+    assert quantities.with_kind("vertical", "phase") == "vertical, sensitivity phase"
+    assert quantities.with_kind("vertical", "magnitude") == "vertical"
+    assert quantities.with_kind("vertical", None) == "vertical"
