@@ -78,8 +78,12 @@ def test_phases_beside_magnitudes(tmp_path):
     # the text table names the kind by its label; JSON and CSV keep its name
     table = pt_compare(path, "table", "--compare", "lab")
     assert "tangential, sensitivity phase" in table and ", phase" not in table
-    assert "(device=MEMS 1, axis=X, frequency_hz=80.0000, bench=curvilinear, direction=" \
-        "tangential, sensitivity phase)" in table and "quantity" not in table
+    assert (
+        "(device=MEMS 1, axis=X, frequency_hz=80.0000, bench=curvilinear, direction="
+        "tangential, sensitivity phase)"
+        in table
+        and "quantity" not in table
+    )
     consistency = table[table.index("CONSISTENCY") :]
     assert consistency.count("tangential, sensitivity phase") == 1  # its own row
     groups = [r["group"] for r in csv.DictReader(io.StringIO(
