@@ -25,7 +25,8 @@ from django.conf import settings
 from django.db.models import Count, Q
 
 from analysis.access import download_name, reports_visible
-from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, Report
+from analysis.kit_results import COVARIANCE_COLUMNS, covariance_rows
+from analysis.models import AnalysisRun, AssignedValue, CompatibilityMatrix, KitPointFit, Report
 from analysis.selectors import score_columns_of, score_records
 from labs.access import ComparisonAccess
 from labs.importers import COLUMNS, write_table_to
@@ -97,6 +98,7 @@ def archive_entries(audience: Audience, reports: list[Report]) -> list[Entry]:
         _scores_entry(run, "csv", n_scores, when),
         _assigned_entry(run),
         *_matrix_entries(run),
+        *_covariance_entries(audience),
         *(_report_entry(r) for r in reports),
     ]
     if n_scores <= XLSX_MAX_ROWS:
@@ -249,6 +251,32 @@ def _matrix_entry(run: AnalysisRun, factor: str) -> Entry:
         "their En",
         write,
     )
+
+
+def _covariance_entries(audience: Audience) -> list[Entry]:
+    """The coordinators' archive of a linked round: the covariance of the linked degrees
+    of equivalence (docs/domain.md §14) in long form.  A participant's has none: every
+    row is a pair of laboratories."""
+    if audience.participant is not None:
+        return []
+    run = audience.run
+    sizes = (KitPointFit.objects.filter(run=run).exclude(reference="")
+             .values_list("doe_covariance__codes", flat=True))  # fmt: skip
+    n_rows = sum(len(c) * (len(c) + 1) // 2 for c in sizes if c)
+    if not n_rows:
+        return []
+
+    def write(out: BinaryIO) -> None:
+        write_table_to(out, covariance_rows(run), format="csv", columns=COVARIANCE_COLUMNS)
+
+    return [Entry(
+        "doe_covariance.csv",
+        "the covariance of the participants' degrees of equivalence against the one "
+        "reference across the kits, in long form: per linked point, "
+        "one row per pair of participant codes a ≤ b with their covariance (a = b: u²(d)) "
+        "and correlation r; u²(d_a − d_b) = u²(d_a) + u²(d_b) − 2·covariance",
+        _large(write, n_rows),
+    )]  # fmt: skip
 
 
 def _report_entry(report: Report) -> Entry:

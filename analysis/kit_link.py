@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from analysis.core.groups import CoreInputError
-from analysis.core.linking import PILOT, WEIGHTED_MEAN, lab_components, link
+from analysis.core.linking import PILOT, WEIGHTED_MEAN, Linked, lab_components, link
 from proficiency.models import AssignedValueMethod
 
 _PILOT_METHODS = {AssignedValueMethod.REFERENCE, AssignedValueMethod.NOMINAL}
@@ -62,7 +62,9 @@ class LinkInput:
 
 @dataclass
 class PointLink:
-    """The link at one point; ``d``, ``u_d``, ``u_link`` per result (None: not linked)."""
+    """The link at one point; ``d``, ``u_d``, ``u_link`` per result (None: not linked);
+    ``covariance``: the covariance of the linked participants' d, factored
+    (:func:`covariance_record`; empty: not linked)."""
 
     reference: str = ""
     chi2: float | None = None
@@ -73,6 +75,7 @@ class PointLink:
     d: list[float | None] = field(default_factory=list)
     u_d: list[float | None] = field(default_factory=list)
     u_link: list[float | None] = field(default_factory=list)
+    covariance: dict = field(default_factory=dict)
 
 
 def reference_of(method: str) -> str:
@@ -170,7 +173,8 @@ def _solve(
         with np.errstate(all="ignore"):  # too large a value: said below, never a warning
             linked = link(y, u, kit_idx, lab_idx, reference=reference, pilot=pilot,
                           in_mean=in_mean)  # fmt: skip
-        numbers = (linked.doe, linked.doe_covariance, linked.u_link, linked.kit_value)
+        numbers = (linked.doe, linked.doe_covariance, linked.u_link, linked.kit_value,
+                   linked.doe_factor, linked.doe_core)  # fmt: skip
         if not all(np.isfinite(a).all() for a in numbers):
             raise CoreInputError("the results there are too large or their uncertainties "
                                  "too small to compute with")  # fmt: skip
@@ -188,4 +192,26 @@ def _solve(
             i = int(rows[lab])
             out.d[i], out.u_d[i] = float(linked.doe[j]), float(u_d[j])
             out.u_link[i] = float(linked.u_link[j])
+    shown = [(str(x.codes[rows[lab]]), j) for j, lab in enumerate(labs.tolist())
+             if lab < n_labs and not (reference == PILOT and j == pilot)]  # fmt: skip
+    out.covariance = covariance_record(linked, sorted(shown))
     return out
+
+
+def covariance_record(linked: Linked, shown: list[tuple[str, int]]) -> dict:
+    """The covariance of the degrees of equivalence of the participants ``shown`` (code,
+    index in ``linked``), as a run stores it (``KitPointFit.doe_covariance``,
+    docs/domain.md §14): ``codes`` in order, ``own`` (each one's own part, 1/Σ(1/u²)),
+    ``factor`` (a row of kits + 1 numbers each) and ``core`` ((kits + 1)², row by row), so
+    that cov = diag(own) + factor·core·factorᵀ exactly — n·(kits + 2) + (kits + 1)²
+    numbers rather than n(n + 1)/2.  The pilot under the pilot reference (d = 0 exactly,
+    no uncertainty) and the pilot's repeats (no participant) are not in it."""
+    if not shown:
+        return {}
+    idx = np.array([j for _, j in shown], dtype=np.intp)
+    return {
+        "codes": [c for c, _ in shown],
+        "own": linked.doe_own[idx].tolist(),
+        "factor": linked.doe_factor[idx].tolist(),
+        "core": linked.doe_core.tolist(),
+    }

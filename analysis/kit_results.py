@@ -4,11 +4,17 @@ coordinator's results page, the API and the reports."""
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
+import numpy as np
 from django.db.models import CharField, FloatField, OuterRef, QuerySet, Subquery
 
+from analysis.core.linking import factored_covariance
 from analysis.models import AnalysisRun, KitPointFit, KitScore, Score
+from common.points import POINT_FIELDS
+from proficiency.models import MeasurementPoint
 from proficiency.selectors import POINT_ORDER
 
 #: the keys each score gains in the API (docs/interfaces.md §3), null where they do not apply
@@ -21,8 +27,9 @@ def run_has_kits(run: AnalysisRun) -> bool:
 
 
 def kit_fits(run: AnalysisRun) -> QuerySet[KitPointFit]:
+    """The run's per-point fits without their covariances (:func:`kit_covariances`)."""
     return (KitPointFit.objects.filter(run=run).select_related("measurement_point__device")
-            .order_by(*POINT_ORDER))  # fmt: skip
+            .defer("doe_covariance").order_by(*POINT_ORDER))  # fmt: skip
 
 
 def kit_scores(run: AnalysisRun, code: str | None = None) -> QuerySet[KitScore]:
@@ -95,3 +102,79 @@ def kit_summary(run: AnalysisRun, labels: dict[int, str] | None = None) -> KitSu
                                     d["u_slope"], d.get("p_value")) for d in f.drift]  # fmt: skip
         summary.notes += [n for n in f.notes if n not in summary.notes]
     return summary
+
+
+# --- the covariance of the linked degrees of equivalence (docs/domain.md §14) -------------
+
+#: the columns of the long-form covariance download (docs/interfaces.md §6)
+COVARIANCE_COLUMNS = [*POINT_FIELDS, "code_a", "code_b", "covariance", "correlation"]
+#: up to this many participants a point's correlations are shown as a matrix, beyond as
+#: its largest pairs
+MATRIX_MAX = 15
+LARGEST_PAIRS = 10
+
+
+@dataclass(frozen=True)
+class DoeCovariance:
+    """The covariance of the linked participants' degrees of equivalence at one point,
+    rebuilt from its stored factored form (``KitPointFit.doe_covariance``)."""
+
+    point: MeasurementPoint
+    reference: str
+    codes: list[str]
+    covariance: np.ndarray
+
+    @property
+    def correlation(self) -> np.ndarray:
+        """r_ab = cov_ab / (u_a·u_b); NaN where a u is 0."""
+        s = np.sqrt(np.diag(self.covariance))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            r = self.covariance / np.outer(s, s)
+        r[np.diag_indices(len(self.codes))] = np.where(s > 0, 1.0, np.nan)
+        return r
+
+    def largest(self, n: int = LARGEST_PAIRS) -> list[tuple[str, str, float]]:
+        """The ``n`` pairs a < b of largest |r|, largest first (then in code order)."""
+        r = self.correlation
+        a, b = np.triu_indices(len(self.codes), k=1)
+        values = r[a, b]
+        keep = np.flatnonzero(np.isfinite(values))
+        order = keep[np.argsort(-np.abs(values[keep]), kind="stable")][:n]
+        return [(self.codes[a[i]], self.codes[b[i]], float(values[i])) for i in order]
+
+
+def covariance_of(fit: KitPointFit) -> DoeCovariance | None:
+    """The covariance stored with ``fit`` (None: not linked, or a run stored before it)."""
+    rec = fit.doe_covariance
+    if not rec or not rec.get("codes"):
+        return None
+    cov = factored_covariance(rec["own"], rec["factor"], rec["core"])
+    return DoeCovariance(fit.measurement_point, fit.reference, list(rec["codes"]), cov)
+
+
+def kit_covariances(run: AnalysisRun, point: MeasurementPoint | None = None
+                    ) -> Iterator[DoeCovariance]:  # fmt: skip
+    """The covariance of the linked degrees of equivalence at each linked point of the run
+    (``point``: that one only), in point order, read a few hundred points at a time."""
+    found = (KitPointFit.objects.filter(run=run).exclude(reference="")
+             .select_related("measurement_point__device").order_by(*POINT_ORDER))  # fmt: skip
+    if point is not None:
+        found = found.filter(measurement_point=point)
+    for fit in found.iterator(chunk_size=200):
+        cov = covariance_of(fit)
+        if cov is not None:
+            yield cov
+
+
+def covariance_rows(run: AnalysisRun) -> Iterator[dict[str, Any]]:
+    """Every linked point's covariances in long form, full precision: one row per pair
+    a ≤ b in the stored code order (a = b: u²(d) and r = 1), r empty where undefined."""
+    for c in kit_covariances(run):
+        keys = dict(zip(POINT_FIELDS, c.point.key.measurand, strict=True))
+        r = c.correlation
+        a, b = np.triu_indices(len(c.codes))
+        for i, j in zip(a.tolist(), b.tolist(), strict=True):
+            rij = float(r[i, j])
+            yield keys | {"code_a": c.codes[i], "code_b": c.codes[j],
+                          "covariance": float(c.covariance[i, j]),
+                          "correlation": rij if np.isfinite(rij) else None}  # fmt: skip

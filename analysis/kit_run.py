@@ -259,6 +259,7 @@ def _point_fit(run: AnalysisRun, rnd: Round, codes: np.ndarray, o: Observed, g: 
         wrap_link(linked)
     fit.reference, fit.chi2, fit.dof = linked.reference, linked.chi2, linked.dof
     fit.kit_values, fit.unlinked = linked.kit_values, linked.unlinked
+    fit.doe_covariance = linked.covariance
     fit.notes = notes + linked.notes
     return fit, linked
 

@@ -557,8 +557,9 @@ class RoundArchive(ClaimedJob):
 class KitPointFit(models.Model):
     """Per run and measurement point of a round with kits (docs/domain.md §13, §14): the
     drift judged on each kit's pilot repeats, and for a round of two kits or more the
-    least-squares link of every participant to one reference, with its χ².  Written with
-    the chunk's scores (``analysis.kit_run``)."""
+    least-squares link of every participant to one reference, with its χ² and the
+    covariance of the linked degrees of equivalence (``analysis.kit_results.
+    covariance_of`` reads it).  Written with the chunk's scores (``analysis.kit_run``)."""
 
     run = models.ForeignKey(AnalysisRun, on_delete=models.CASCADE, related_name="kit_points")
     measurement_point = models.ForeignKey(
@@ -578,6 +579,11 @@ class KitPointFit(models.Model):
         default=list, blank=True, help_text="codes of the participants not linked to it"
     )
     notes = models.JSONField(default=list, blank=True, help_text="what the run did and why")
+    doe_covariance = models.JSONField(
+        default=dict, blank=True,
+        help_text="the covariance of the linked participants' d, factored: codes, own, factor, "
+        "core, cov = diag(own) + factor·core·factorᵀ; empty: not linked",
+    )  # fmt: skip
 
     class Meta:
         ordering = ["run", "measurement_point"]

@@ -23,6 +23,13 @@ urlpatterns = [
     path(C + "publish/", views.publish, name="publish"),
     path(C + "publication/<int:pk>/", views.publication, name="publication"),
     path(C + "performance/", views.performance_page, COORD, name="performance"),
+    # the covariance of a kits round's linked degrees of equivalence (docs/domain.md §14)
+    path(
+        C + "results/kits/covariance.csv",
+        kit_views.kit_covariance_download,
+        COORD,
+        name="results_kits_covariance",
+    ),
     path(
         C + "performance/<slug:lab>/",
         views.participant_performance,

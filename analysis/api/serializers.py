@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
+from typing import Any
+
+import numpy as np
 from django.urls import reverse
 from drf_spectacular.utils import extend_schema_field
 from rest_framework import serializers
 
-from analysis.models import AnalysisRun, Publication, Score
+from analysis.kit_results import covariance_of
+from analysis.models import AnalysisRun, KitPointFit, Publication, Score
 from analysis.selectors import z_used_name
 from labs.models import Submission
 from proficiency.models import AssignedValueMethod, Comparison, DriftTreatment, SigmaPtMode
@@ -115,6 +119,39 @@ class MatrixSerializer(serializers.Serializer):
     expanded_uncertainty = serializers.ListField(child=serializers.FloatField())
     en = serializers.ListField(child=serializers.ListField(child=serializers.FloatField()))
     incompatible_pairs = serializers.IntegerField()
+
+
+class DoeCovarianceSerializer(serializers.Serializer):
+    """The covariance of the linked degrees of equivalence at one point (docs/domain.md
+    §14): ``codes`` in order, the n × n ``covariance`` and ``correlation`` (null where a
+    u(d) is 0), full precision; from a ``KitPointFit``."""
+
+    device = serializers.CharField(source="measurement_point.device.name")
+    axis = serializers.CharField(source="measurement_point.axis")
+    frequency_hz = serializers.FloatField(source="measurement_point.frequency_hz")
+    bench = serializers.CharField(source="measurement_point.bench")
+    direction = serializers.CharField(source="measurement_point.direction")
+    quantity = serializers.CharField(source="measurement_point.quantity")
+    reference = serializers.CharField(help_text="pilot or weighted_mean")
+    codes = serializers.ListField(child=serializers.CharField(), read_only=True)
+    covariance = serializers.ListField(
+        child=serializers.ListField(child=serializers.FloatField()), read_only=True,
+        help_text="cov(d_a, d_b), in the order of codes; the diagonal is u²(d)",
+    )  # fmt: skip
+    correlation = serializers.ListField(
+        child=serializers.ListField(child=serializers.FloatField(allow_null=True)),
+        read_only=True, help_text="r = cov(d_a, d_b)/(u(d_a)·u(d_b)); null where undefined",
+    )  # fmt: skip
+
+    def to_representation(self, instance: KitPointFit) -> dict[str, Any]:
+        data = super().to_representation(instance)
+        c = covariance_of(instance)
+        codes, cov = (c.codes, c.covariance) if c is not None else ([], np.zeros((0, 0)))
+        r = c.correlation if c is not None else cov
+        data["codes"] = codes
+        data["covariance"] = cov.tolist()
+        data["correlation"] = [[x if np.isfinite(x) else None for x in row] for row in r.tolist()]
+        return data
 
 
 class ComparisonStateSerializer(serializers.ModelSerializer):

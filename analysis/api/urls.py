@@ -18,6 +18,11 @@ urlpatterns = [
     ),
     path("comparisons/<slug:code>/scores/", views.ScoreList.as_view(), name="score-list"),
     path(
+        "comparisons/<slug:code>/doe-covariance/",
+        views.DoeCovarianceList.as_view(),
+        name="doe-covariance",
+    ),
+    path(
         "comparisons/<slug:code>/compatibility/",
         views.CompatibilityView.as_view(),
         name="compatibility",

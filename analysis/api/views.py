@@ -19,12 +19,13 @@ from rest_framework.response import Response
 from analysis.api import serializers as s
 from analysis.core.groups import CoreInputError
 from analysis.kit_results import with_kit_scores
-from analysis.models import AnalysisRun, Publication, Score
+from analysis.models import AnalysisRun, KitPointFit, Publication, Score
 from analysis.pipeline import matrix_record
 from analysis.publication import publication_start
 from analysis.selectors import SCORE_FILTERS, current_run, lab_matrices, run_matrices, run_scores
 from analysis.services import analysis_run_cancel, analysis_run_start
 from common.errors import NotVisible, StateConflict, ValidationFailed
+from common.pagination import PageNumberPagination
 from labs.access import (
     ComparisonAccess,
     caller_of,
@@ -36,8 +37,14 @@ from labs.api.views import ApiView
 from labs.models import Result, Submission
 from labs.review import submission_decide, submission_request_check
 from labs.services import comparison_move
+from proficiency.selectors import POINT_ORDER
 
 FACTORS = ("axis", "frequency", "device", "bench", "direction", "lab")
+#: a point's keys as query parameters and their lookups from a ``KitPointFit``
+POINT_KEYS = {
+    k: f"measurement_point__{'device__name' if k == 'device' else k}"
+    for k in ("device", "axis", "frequency_hz", "bench", "direction", "quantity")
+}
 POINT_FILTERS = [
     OpenApiParameter(k, str, description=f"only this {k}") for k in SCORE_FILTERS
 ]  # fmt: skip
@@ -133,6 +140,41 @@ class ScoreList(ApiView, generics.ListAPIView):
             assert access.participant is not None
             filters["lab"] = access.participant.code
         return with_kit_scores(run_scores(shown_run(access), filters))
+
+
+class CovariancePages(PageNumberPagination):
+    """One point per page by default (a point of 300 participants is two 300 × 300
+    matrices); ``page_size`` up to 100."""
+
+    page_size = 1
+    page_size_query_param = "page_size"
+    max_page_size = 100
+
+
+class DoeCovarianceList(ApiView, generics.ListAPIView):
+    """The covariance and correlation of the linked degrees of equivalence per point of the
+    current run of a round with kits (docs/domain.md §14): coordinators only (a participant
+    gets 403: every entry is a pair of laboratories)."""
+
+    serializer_class = s.DoeCovarianceSerializer
+    pagination_class = CovariancePages
+
+    @extend_schema(parameters=POINT_FILTERS[:6])
+    def get(self, request: Request, *args: Any, **kwargs: Any) -> Response:
+        return super().get(request, *args, **kwargs)
+
+    def get_queryset(self) -> QuerySet[KitPointFit]:
+        if getattr(self, "swagger_fake_view", False):
+            return KitPointFit.objects.none()
+        access = self.access(self.kwargs["code"])
+        require_coordinator(access)
+        filters = {k: self.request.query_params.get(k, "") for k in POINT_KEYS}
+        if filters["frequency_hz"]:
+            number(filters["frequency_hz"], "frequency_hz")
+        lookups = {POINT_KEYS[k]: v for k, v in filters.items() if v}
+        return (KitPointFit.objects.filter(run=shown_run(access), **lookups)
+                .exclude(reference="").select_related("measurement_point__device")
+                .order_by(*POINT_ORDER))  # fmt: skip
 
 
 class CompatibilityQuery(serializers.Serializer):

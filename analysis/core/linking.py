@@ -26,6 +26,14 @@ not the laboratory's own, √(u²(d_j) − u_j²/m_j) with m_j its number of obs
 A laboratory must be connected to the reference through kits (the graph of laboratories
 and kits joined by observations must be connected); otherwise the system is singular and
 the unconnected laboratories are named.
+
+The covariance of the degrees of equivalence is also given *factored*, exactly:
+cov(d) = diag(own) + F·Z·Fᵀ, with ``own`` each laboratory's own part 1/Σ(1/u²) and F (one
+row per laboratory) and Z (r × r, r = kits + 1) from the Schur complement of the bordered
+system on its laboratory block (which is diagonal, each observation having one
+laboratory).  The off-diagonal covariances — and u_link² on the diagonal — are the F·Z·Fᵀ
+part: n·(r + 1) + r² numbers instead of n(n + 1)/2, what a run stores
+(docs/domain.md §14).
 """
 
 from __future__ import annotations
@@ -48,7 +56,9 @@ class Linked:
     fit and its degrees of freedom (observations − parameters + 1 constraint): with one
     bias per laboratory, χ² tests only the repeated measurements of the loop structure
     (the pilot's repeats, the linking laboratories); whether the laboratories agree with
-    the reference is what their DoEs and En say."""
+    the reference is what their DoEs and En say.  ``doe_own``, ``doe_factor`` and
+    ``doe_core`` give ``doe_covariance`` factored (:func:`factored_covariance`; the
+    pilot's row of the factor and its own part are 0 under the pilot reference)."""
 
     kit_value: FloatArray
     u_kit_value: FloatArray
@@ -57,6 +67,9 @@ class Linked:
     u_link: FloatArray
     chi2: float
     dof: int
+    doe_own: FloatArray
+    doe_factor: FloatArray
+    doe_core: FloatArray
 
     @property
     def u_doe(self) -> FloatArray:
@@ -67,6 +80,36 @@ class Linked:
         s = self.u_doe
         with np.errstate(invalid="ignore", divide="ignore"):
             return self.doe_covariance / np.outer(s, s)
+
+
+def factored_covariance(own: ArrayLike, factor: ArrayLike, core: ArrayLike) -> FloatArray:
+    """diag(own) + F·Z·Fᵀ: the covariance of degrees of equivalence from its factored form
+    (:class:`Linked`; a subset of laboratories is the subset of the rows of ``own`` and
+    ``factor``)."""
+    d = np.asarray(own, dtype=np.float64)
+    f = np.asarray(factor, dtype=np.float64).reshape(d.size, -1)
+    z = np.asarray(core, dtype=np.float64).reshape(f.shape[1], f.shape[1])
+    cov: FloatArray = f @ z @ f.T
+    cov[np.diag_indices(d.size)] += d
+    return cov
+
+
+def _factors(
+    w: FloatArray, kit: IntArray, lab: IntArray, n_kits: int, n_labs: int,
+    constraint: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray]:  # fmt: skip
+    """The covariance of the biases factored (:class:`Linked`): with the bordered matrix
+    ordered (b, K, λ) as [[D, E], [Eᵀ, H]], D diagonal, its inverse's b block is
+    D⁻¹ + G·S⁻¹·Gᵀ, G = D⁻¹E, S = H − EᵀD⁻¹E (block inversion)."""
+    own = np.bincount(lab, weights=w, minlength=n_labs)
+    e = np.zeros((n_labs, n_kits + 1))
+    np.add.at(e, (lab, kit), w)  # Σ w of laboratory j's observations on kit k
+    e[:, n_kits] = constraint[n_kits:]
+    h = np.zeros((n_kits + 1, n_kits + 1))
+    h[np.arange(n_kits), np.arange(n_kits)] = np.bincount(kit, weights=w, minlength=n_kits)
+    g = e / own[:, None]
+    core = np.linalg.inv(h - e.T @ g)
+    return 1.0 / own, g, 0.5 * (core + core.T)
 
 
 def lab_components(kit: ArrayLike, lab: ArrayLike) -> IntArray:
@@ -169,12 +212,16 @@ def link(
     with np.errstate(invalid="ignore"):
         u_link = np.sqrt(np.maximum(np.diag(cov_b) - 1.0 / own, 0.0))
     doe = theta[n_kits:].copy()
+    own_part, factor, core = _factors(w, kk, jj, n_kits, n_labs, constraint)
     if reference == PILOT:  # zero by the constraint; written exactly, not as 1e-13
         doe[pilot] = 0.0
         cov_b[pilot, :] = cov_b[:, pilot] = 0.0
         u_link[pilot] = 0.0
+        own_part[pilot] = 0.0
+        factor[pilot, :] = 0.0
     return Linked(
         kit_value=theta[:n_kits], u_kit_value=np.sqrt(np.diag(cov)[:n_kits]),
         doe=doe, doe_covariance=cov_b, u_link=u_link,
         chi2=float(np.sum(w * residual**2)), dof=int(yy.size - m + 1),
+        doe_own=own_part, doe_factor=factor, doe_core=core,
     )  # fmt: skip

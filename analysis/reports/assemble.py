@@ -449,7 +449,7 @@ def report_data(
         en_limit=comparison.en_limit,
         sigma_pt_description=_sigma_pt(comparison),
         traceability=_traceability(comparison),
-        stability=_stability(context.stability_rows),
+        stability=_stability(context.stability_rows, context.kits),
         stability_rows=context.stability_rows,
         kits=for_reader(context.kits, participant.code if participant else None),
         comments=comments or comparison.report_comments,
@@ -722,11 +722,26 @@ def _traceability(comparison: Comparison) -> str:
     )
 
 
-def _stability(rows: tuple[StabilityRow, ...]) -> str:
+def _stability(rows: tuple[StabilityRow, ...], kits: KitSection | None = None) -> str:
     homogeneity = (
         "Homogeneity: each artefact is one item circulated to every participant, so there is "
         "no between-item inhomogeneity (u_hom = 0). "
     )
+    if not rows and kits is not None and kits.drift:
+        n_kits = len({d.kit for d in kits.drift})
+        if n_kits > 1:
+            homogeneity = (
+                f"Homogeneity: the artefacts travelled in {n_kits} kits, each circulated to "
+                "the participants of its own loop; how the kits' items differ is measured "
+                "(section Linking and drift), not assumed. "
+            )
+        drifting = sum(d.model == "linear" for d in kits.drift)
+        series = counted(len(kits.drift), "series", "series")
+        return homogeneity + (
+            f"Stability: the pilot measured each kit repeatedly over its circulation "
+            f"({series} of one kit at one point, {drifting} drifting); section Linking and "
+            "drift gives the drift found and what the scores do with it."
+        )
     if not rows:
         return homogeneity + (
             "Stability: no measurements of the pilot before and after circulation were "

@@ -191,16 +191,32 @@ class KitDrift:
 
 
 @dataclass(frozen=True)
+class KitCorrelations:
+    """The correlations between the linked participants' degrees of equivalence at one
+    point (§14): for a point of few participants the matrix of r (``codes`` and ``matrix``,
+    row by row, None where undefined), else its largest pairs (code, code, r)."""
+
+    point: int
+    n: int
+    codes: tuple[str, ...] = ()
+    matrix: tuple[tuple[float | None, ...], ...] = ()
+    pairs: tuple[tuple[str, str, float], ...] = ()
+
+
+@dataclass(frozen=True)
 class KitSection:
     """The "Linking and drift" part of a report: what was done, the drift judged per kit
     and point, and the links — every participant's by code in the summary, the reader's
-    own in a participant report."""
+    own in a participant report; the correlations between the degrees of equivalence in
+    the summary only."""
 
     text: str
     drift: tuple[KitDrift, ...]
     notes: tuple[str, ...]
     links: tuple[KitLink, ...]
     linked_round: bool
+    correlations: tuple[KitCorrelations, ...] = ()
+    correlation_text: str = ""
 
 
 @dataclass(frozen=True)

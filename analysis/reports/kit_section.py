@@ -8,8 +8,8 @@ from html import escape
 from reportlab.lib.units import mm
 from reportlab.platypus import Flowable, Spacer
 
-from analysis.reports.data import KitLink, KitSection, ReportData
-from analysis.reports.sections import by_unc, para, table, unc
+from analysis.reports.data import KitCorrelations, KitLink, KitSection, ReportData
+from analysis.reports.sections import by_unc, intro, para, table, unc
 from common.quantities import per_day, unit_text, with_unit
 
 
@@ -25,6 +25,10 @@ def kits_section(data: ReportData) -> list[Flowable]:
         flow += [Spacer(1, 2 * mm), _links_table(data, k)]
     elif k.links and k.linked_round:
         flow += [Spacer(1, 2 * mm), _labs_table(data, k)]
+    if k.correlations and not data.is_participant:
+        flow += [Spacer(1, 2 * mm), para(k.correlation_text)]
+        for c in k.correlations:
+            flow += _correlations(data, c)
     return flow
 
 
@@ -52,6 +56,24 @@ def _drift_table(data: ReportData, k: KitSection) -> Flowable:
         )
     widths = [16 * mm, 46 * mm, 14 * mm, 8 * mm, 16 * mm, 30 * mm, 28 * mm, 14 * mm]
     return table(rows, widths, wrap=(0, 1, 2, 5, 6))
+
+
+def _correlations(data: ReportData, c: KitCorrelations) -> list[Flowable]:
+    """One point's correlations between degrees of equivalence: the matrix of r (two
+    decimals) or its largest pairs."""
+    p = data.points[c.point]
+    head = f"Correlations r between the degrees of equivalence at {p.device}, {p.label}"
+    if c.matrix:
+        rows = [["r", *c.codes]]
+        rows += [[a, *("–" if x is None else f"{x:.2f}" for x in row)]
+                 for a, row in zip(c.codes, c.matrix, strict=True)]  # fmt: skip
+        widths = [12 * mm] + [min(11.0, 150.0 / max(len(c.codes), 1)) * mm] * len(c.codes)
+        return [Spacer(1, 2 * mm), intro(escape(head) + f" ({c.n} participants):"),
+                table(rows, widths)]  # fmt: skip
+    rows = [["Lab", "Lab", "r"], *([a, b, f"{r:.2f}"] for a, b, r in c.pairs)]
+    return [Spacer(1, 2 * mm),
+            intro(escape(head) + f": the {len(c.pairs)} largest |r| of {c.n} participants"),
+            table(rows, [14 * mm, 14 * mm, 14 * mm])]  # fmt: skip
 
 
 def _labs_table(data: ReportData, k: KitSection) -> Flowable:

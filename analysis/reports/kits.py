@@ -6,9 +6,11 @@ Drawn by ``analysis.reports.kit_section``."""
 
 from __future__ import annotations
 
-from analysis.kit_results import kit_fits, kit_scores
+import math
+
+from analysis.kit_results import MATRIX_MAX, kit_covariances, kit_fits, kit_scores
 from analysis.models import AnalysisRun
-from analysis.reports.data import KitDrift, KitLink, KitSection
+from analysis.reports.data import KitCorrelations, KitDrift, KitLink, KitSection
 from common.sizes import counted
 
 _DATE = (
@@ -81,12 +83,38 @@ def kit_section_of_run(run: AnalysisRun, index: dict[int, int]) -> KitSection | 
             "U(d) = 2·u(d), and u_link is the part of u(d) that is not the laboratory's "
             f"own. {counted(len(fits) - len(linked), 'point')} could not be linked."
         )
-    return KitSection(text, drift, notes, links, bool(linked))
+    correlations = _correlations(run, index)
+    return KitSection(text, drift, notes, links, bool(linked), correlations, _CORRELATED)
+
+
+_CORRELATED = (
+    "Two participants' degrees of equivalence are correlated through the kit values and "
+    "the reference they share: r = cov(d<sub>a</sub>, d<sub>b</sub>)/(u(d<sub>a</sub>)·"
+    "u(d<sub>b</sub>)), given per point as a matrix for at most "
+    f"{MATRIX_MAX} participants, else as the largest |r| (the pilot, whose d is 0, is in "
+    "none). The difference of two participants has u²(d<sub>a</sub> − d<sub>b</sub>) = "
+    "u²(d<sub>a</sub>) + u²(d<sub>b</sub>) − 2·cov(d<sub>a</sub>, d<sub>b</sub>); every "
+    "covariance is in the coordinators' archive (doe_covariance.csv)."
+)
+
+
+def _correlations(run: AnalysisRun, index: dict[int, int]) -> tuple[KitCorrelations, ...]:
+    out = []
+    for c in kit_covariances(run):
+        point, n = index[c.point.pk], len(c.codes)
+        if n <= MATRIX_MAX:
+            rows = tuple(tuple(x if math.isfinite(x) else None for x in row)
+                         for row in c.correlation.tolist())  # fmt: skip
+            out.append(KitCorrelations(point, n, tuple(c.codes), rows))
+        else:
+            out.append(KitCorrelations(point, n, pairs=tuple(c.largest())))
+    return tuple(out)
 
 
 def for_reader(section: KitSection | None, own_code: str | None) -> KitSection | None:
-    """The summary keeps every link (by code); a participant report its own only, and the
-    run's messages without other participants' codes."""
+    """The summary keeps every link (by code) and the correlations; a participant report
+    its own links only, the run's messages without other participants' codes, and no
+    correlation (each is a pair of laboratories)."""
     if section is None or own_code is None:
         return section
     own = tuple(k for k in section.links if k.code == own_code)

@@ -23,7 +23,7 @@ from django.utils import timezone
 
 from analysis.archive import archive_execute, archive_request, archives_sweep
 from analysis.archive_contents import Entry, write_archive
-from analysis.models import AssignedValue, CompatibilityMatrix, Report, RoundArchive
+from analysis.models import AssignedValue, CompatibilityMatrix, KitPointFit, Report, RoundArchive
 from analysis.publication import comparison_publish
 from analysis.reports.services import report_issue
 from analysis.tasks import archive_build_task
@@ -85,9 +85,15 @@ def test_coordinator_archive_holds_the_downloads_and_the_reports(client, run, de
     stored_factors = CompatibilityMatrix.objects.filter(run=run).values_list("factor", flat=True)
     factors = sorted(set(stored_factors))
     assert list(files) == [
-        "README.txt", "assigned_values.csv", *(f"matrices/{f}.csv" for f in factors),
+        "README.txt", "assigned_values.csv", "doe_covariance.csv",
+        *(f"matrices/{f}.csv" for f in factors),
         f"reports/{CODE}-summary-v1.pdf", "results.csv", "scores.csv", "scores.xlsx",
     ]  # fmt: skip
+    # the demo's two kits: the covariance of the linked d at its 27 linked points, a ≤ b
+    fits = KitPointFit.objects.filter(run=run).exclude(reference="")
+    sizes = [len(f.doe_covariance["codes"]) for f in fits]
+    assert len(sizes) == 27 and all(n > 2 for n in sizes)
+    assert len(csv_rows(files["doe_covariance.csv"])) == sum(n * (n + 1) // 2 for n in sizes)
     # the scores: the same bytes as the scores download, the same cells as its XLSX
     assert files["scores.csv"] == download(client, C + "scores.csv")
     assert sheet(files["scores.xlsx"]) == sheet(download(client, C + "scores.xlsx"))
@@ -162,6 +168,7 @@ def test_participant_archive_holds_only_its_own_and_the_summary(client, publishe
     # its own results; every score by code, exactly as its scores download
     assert {r["lab"] for r in csv_rows(files["results.csv"])} == {own.code}
     assert files["scores.csv"] == download(client, f"/results/{CODE}/scores.csv")
+    assert "doe_covariance.csv" not in files  # every row a pair of laboratories
     others = Participant.objects.filter(comparison=published).exclude(pk=own.pk)
     for other in others.select_related("laboratory"):
         assert not any(other.laboratory.name.encode() in body for body in files.values())

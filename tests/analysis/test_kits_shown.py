@@ -122,6 +122,11 @@ def test_the_reports_say_what_was_done(linked):
     summary = "\n".join(pdf_text(render_report(report_data(run=run))))
     assert "Linking and drift" in summary and "the pilot" in summary
     assert re.search(r"2\s+drifting", summary)  # Kit B at both points
+    # the artefacts paragraph points at the pilot's repeats, never "no measurements"
+    flat = " ".join(summary.split())
+    assert "Homogeneity: the artefacts travelled in 2 kits" in flat
+    assert "Stability: the pilot measured each kit repeatedly over its circulation (4 " in flat
+    assert "no measurements of the pilot" not in flat
     k5 = row_of(linked, "L5")
     largest = max(row_of(linked, "L5", p).u_link or 0 for p in (0, 1))
     assert numbers.uncertainty(largest) in summary

@@ -342,6 +342,11 @@ TABLE: dict[str, Row] = {
         get="302 404 404 404 200 404 302 302 200",
         post="302 405 405 405 405 405 302 302 405",
     ),
+    # the covariance of the linked degrees of equivalence (docs/domain.md §14), as a CSV
+    "coordinator/<slug:code>/results/kits/covariance.csv": Row(
+        get="302 404 404 404 200 404 302 302 200",
+        post="302 405 405 405 405 405 302 302 405",
+    ),
     # the round's archive: asked for by the round's coordinators (POST; built inline, then
     # back to the results page), its status line and the ready ZIP (the world holds the
     # coordinators' archive of the run)
@@ -497,6 +502,12 @@ TABLE: dict[str, Row] = {
     # participants: 409 until published
     "api/v1/comparisons/<slug:code>/scores/": Row(
         get="401 409 409 409 200 404 409 401 200",
+        post="401 405 405 405 405 405 405 401 405",
+    ),
+    # the covariance of the linked degrees of equivalence: coordinators only, every entry a
+    # pair of laboratories (an empty list in a round without kits)
+    "api/v1/comparisons/<slug:code>/doe-covariance/": Row(
+        get="401 403 403 403 200 404 403 401 200",
         post="401 405 405 405 405 405 405 401 405",
     ),
     # coordinators: 400 without ?factor=
@@ -678,6 +689,9 @@ PUBLISHED: dict[str, Row] = {
     ),
     "api/v1/comparisons/<slug:code>/compatibility/": Row(
         get="401 200 200 200 200 404 200 401 200", post="", query="factor=axis"
+    ),
+    "api/v1/comparisons/<slug:code>/doe-covariance/": Row(
+        get="401 403 403 403 200 404 403 401 200", post=""
     ),
     "api/v1/comparisons/<slug:code>/participants/<str:participant>/scope/": Row(
         get="401 403 403 403 200 404 403 401 200",

@@ -10,7 +10,7 @@ import pytest
 
 from analysis.core.assigned import weighted_mean
 from analysis.core.groups import CoreInputError, Groups
-from analysis.core.linking import link
+from analysis.core.linking import factored_covariance, link
 from analysis.core.scores import compute_scores
 
 Y = np.array([418.2, 419.1, 417.6, 418.9, 420.3])
@@ -124,6 +124,19 @@ def test_random_loop_structures_equal_a_dense_solve(reference, seed):
     assert linked.kit_value == pytest.approx(theta[:n_k], rel=1e-10)
     assert linked.doe == pytest.approx(theta[n_k:], abs=1e-9)
     assert linked.doe_covariance == pytest.approx(cov[n_k:, n_k:], abs=1e-12)
+    # the factored form a run stores gives the same covariance, and its diagonal beyond the
+    # laboratory's own part is u_link²
+    factored = factored_covariance(linked.doe_own, linked.doe_factor, linked.doe_core)
+    scale = np.abs(cov[n_k:, n_k:]).max()
+    np.testing.assert_allclose(factored, cov[n_k:, n_k:], rtol=1e-10, atol=1e-10 * scale)
+    assert linked.doe_factor.shape == (n_labs, n_kits + 1) and linked.doe_core.shape == (
+        n_kits + 1, n_kits + 1)  # fmt: skip
+    link_part = np.diag(factored) - linked.doe_own
+    assert np.sqrt(np.maximum(link_part, 0)) == pytest.approx(linked.u_link, abs=1e-9)
+    # a subset of laboratories: the subset of the rows
+    some = np.array([1, *linkers])
+    sub = factored_covariance(linked.doe_own[some], linked.doe_factor[some], linked.doe_core)
+    np.testing.assert_allclose(sub, factored[np.ix_(some, some)], rtol=1e-12, atol=1e-14 * scale)
 
 
 def test_an_unlinked_laboratory_is_named():

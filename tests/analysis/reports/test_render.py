@@ -155,7 +155,8 @@ def test_assembly_takes_a_few_queries(analysed, django_assert_max_num_queries):
     # publications, the latest runs of rounds without one, scores); 2 more, once per run:
     # Mandel's h and k as the web reads them (analysis.graph_data.mandel_data: the run's
     # points, every result's mean and repeat standard deviation); 2 more: the demo's kits,
-    # their fits and every result's kit row (docs/domain.md §13, §14)
-    with django_assert_max_num_queries(13 + 4 + 2 + 2):
+    # their fits and every result's kit row (docs/domain.md §13, §14); 1 more: the
+    # covariances of the linked degrees of equivalence (read once per run, for the summary)
+    with django_assert_max_num_queries(13 + 4 + 2 + 2 + 1):
         data = report_data(run=analysed, participant=participant)
     assert len(data.scores) == 891 and len(data.points) == 81 and data.own_code
