@@ -171,7 +171,7 @@ def _results_entry(audience: Audience, n_scores: int) -> Entry:
     whose = "your laboratory's results" if audience.participant else "every participant's results"
     return Entry(
         "results.csv",
-        f"{whose} that the run scored, as a results table (docs/interfaces.md §1): one row "
+        f"{whose} that the run scored, as a results table (the columns of an upload): one row "
         "per result, laboratories by participant code; the input of pt_compare",
         _large(write, n_scores),
     )
@@ -246,7 +246,7 @@ def _matrix_entry(run: AnalysisRun, factor: str) -> Entry:
 
     return Entry(
         f"matrices/{factor}.csv",
-        f"the compatibility matrices of the factor {factor} (docs/domain.md §6) in long form: "
+        f"the compatibility matrices of the factor {factor} in long form: "
         "per group, one row per pair of levels i < j with each level's value and U and "
         "their En",
         write,
@@ -272,7 +272,7 @@ def _covariance_entries(audience: Audience) -> list[Entry]:
     return [Entry(
         "doe_covariance.csv",
         "the covariance of the participants' degrees of equivalence against the one "
-        "reference across the kits (docs/domain.md §14), in long form: per linked point, "
+        "reference across the kits, in long form: per linked point, "
         "one row per pair of participant codes a ≤ b with their covariance (a = b: u²(d)) "
         "and correlation r; u²(d_a − d_b) = u²(d_a) + u²(d_b) − 2·covariance",
         _large(write, n_rows),

@@ -80,7 +80,8 @@ def _draw_point_charts(viewer: Viewer, point: MeasurementPoint) -> dict[str, str
     title = point_choice_label(point)
     return {
         "point": charts.point_chart(
-            **specs.point_arguments(data, title, point.value_unit, viewer.own_code)
+            **specs.point_arguments(data, title, point.value_unit, viewer.own_code,
+                                    point.quantity)
         ),
         "en": charts.en_chart(data.labels, data.en, title=f"En · {title}",
                               limit=viewer.comparison.en_limit, highlight=viewer.own_code),
@@ -117,6 +118,6 @@ def _draw_frequency_charts(viewer: Viewer) -> list[str]:
         out.append(charts.frequency_chart(
             curves, title=f"{name}{', ' + shown if shown else ''}: mean of all labs per frequency",
             unit=quantities.point_unit(kind, d.unit) if d else "",
-            nominal=nominal, nominal_half_width=half,
+            nominal=nominal, nominal_half_width=half, quantity=kind,
         ))  # fmt: skip
     return out

@@ -81,16 +81,16 @@ def point_specs(viewer: Viewer, point: MeasurementPoint) -> dict[str, Spec]:
     assert viewer.run is not None
     run, own, limit = viewer.run, viewer.own_code, viewer.comparison.en_limit
     data = functools.cache(lambda: graph_data.point_data(run, point))
-    title, unit = point_choice_label(point), point.value_unit
+    title, unit, kind = point_choice_label(point), point.value_unit, point.quantity
     builders: dict[str, Callable[[], Figure]] = {
-        "point": lambda: charts.point_figure(**point_arguments(data(), title, unit, own)),
+        "point": lambda: charts.point_figure(**point_arguments(data(), title, unit, own, kind)),
         "en": lambda: charts.en_figure(data().labels, data().en, title=f"En · {title}",
                                        limit=limit, highlight=own),
         "z": lambda: std.z_figure(data().labels, data().z, title=f"{data().z_name} · {title}",
                                   name=data().z_name, highlight=own),
         "en-bars": lambda: std.en_bar_figure(data().labels, data().en, title=f"En · {title}",
                                              limit=limit, highlight=own),
-        "density": lambda: _density(data(), title, unit, own),
+        "density": lambda: _density(data(), title, unit, own, kind),
         "doe": lambda: _doe(data(), title, unit, own),
     }  # fmt: skip
     slug = slugify(point_choice_label(point))
@@ -107,22 +107,26 @@ def point_specs(viewer: Viewer, point: MeasurementPoint) -> dict[str, Spec]:
 
 
 def point_arguments(
-    data: graph_data.PointData, title: str, unit: str, own: str | None
-) -> dict[str, Any]:
-    """``charts.point_chart``'s arguments: the page's chart and its download are the same."""
+    data: graph_data.PointData, title: str, unit: str, own: str | None,
+    quantity: str | None = None,
+) -> dict[str, Any]:  # fmt: skip
+    """``charts.point_chart``'s arguments: the page's chart and its download are the same
+    (the value axis names the point's ``quantity`` and unit)."""
     a = data.assigned
     return {"labels": data.labels, "values": data.values,
             "expanded_uncertainties": data.expanded, "assigned_value": a.value,
             "assigned_expanded_uncertainty": a.expanded_uncertainty, "title": title,
-            "unit": unit, "highlight": own}  # fmt: skip
+            "unit": unit, "quantity": quantity, "highlight": own}  # fmt: skip
 
 
-def _density(data: graph_data.PointData, title: str, unit: str, own: str | None) -> Figure:
+def _density(data: graph_data.PointData, title: str, unit: str, own: str | None,
+             quantity: str | None = None) -> Figure:  # fmt: skip
     mine = [v for lab, v in zip(data.labels, data.values, strict=True) if lab == own]
     return std.density_figure(
         data.values, assigned_value=data.assigned.value,
         assigned_expanded_uncertainty=data.assigned.expanded_uncertainty,
-        title=f"Kernel density · {title}", unit=unit, own_value=mine[0] if mine else None,
+        title=f"Kernel density · {title}", unit=unit, quantity=quantity,
+        own_value=mine[0] if mine else None,
     )  # fmt: skip
 
 

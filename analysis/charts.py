@@ -21,7 +21,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.colors import LinearSegmentedColormap
 from matplotlib.figure import Figure
 
-from common.quantities import unit_text
+from common.quantities import label_shown, unit_text
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -137,6 +137,7 @@ def point_figure(
     title: str,
     unit: str,
     highlight: str | None = None,
+    quantity: str | None = None,
 ) -> Figure:
     """The labs' results with error bars (U) against x_pt and its ±U band, one point."""
     fig = _figure(5.6, 3.4)
@@ -157,7 +158,7 @@ def point_figure(
                         ecolor=colour, capsize=cap, lw=1)  # fmt: skip
     ax.set_xlabel("Participant")
     _lab_ticks(ax, x, labels, highlight)
-    ax.set_ylabel(f"Sensitivity ({axis_unit(unit)})")
+    ax.set_ylabel(value_axis(unit, quantity))
     ax.set_title(title)
     fig.legend(loc="outside lower center", ncols=2, frameon=False)
     return fig
@@ -253,6 +254,7 @@ def frequency_chart(
     unit: str,
     nominal: float | None = None,
     nominal_half_width: float | None = None,
+    quantity: str | None = None,
 ) -> str:
     """Sensitivity against frequency, one line per series with U error bars (study Fig. 8/10).
 
@@ -270,7 +272,7 @@ def frequency_chart(
         ax.errorbar(x, s.y, yerr=s.expanded_uncertainty, fmt="-o", ms=4, capsize=3, lw=1,
                     color=SERIES[i % len(SERIES)], label=s.label)  # fmt: skip
     ax.set_xlabel("Frequency (Hz)")
-    ax.set_ylabel(f"Sensitivity ({axis_unit(unit)})")
+    ax.set_ylabel(value_axis(unit, quantity))
     ax.set_title(title)
     fig.legend(loc="outside lower center", ncols=5, frameon=False)
     return _svg(fig)
@@ -285,8 +287,17 @@ def _offsets(series: Sequence[Series]) -> list[float]:
 
 
 def axis_unit(unit: str) -> str:
-    """A unit on an axis: ``°`` for degrees (``common.quantities.unit_text``), ``²``."""
-    return unit_text(unit).replace("^2", "²")
+    """A unit on an axis: ``°`` for degrees, ``²`` for a square
+    (``common.quantities.unit_text``)."""
+    return unit_text(unit)
+
+
+def value_axis(unit: str, quantity: str | None = None) -> str:
+    """The axis of a point's values: its quantity's label and unit (docs/domain.md §3.1),
+    ``Sensitivity (D/(m/s²))`` for a magnitude as before kinds existed, ``Sensitivity phase
+    (°)``, ``Angular-rate sensitivity (D/(°/s))``."""
+    shown = label_shown(quantity)
+    return f"{shown[:1].upper() + shown[1:] if shown else 'Sensitivity'} ({axis_unit(unit)})"
 
 
 @_with_rc

@@ -31,6 +31,7 @@ from analysis import circular as circ
 from analysis.core import consistency as iso
 from analysis.core.groups import Groups
 from common.points import POINT_FIELDS
+from common.quantities import with_kind
 
 if TYPE_CHECKING:
     from analysis.pipeline import Analysis, ResultTable
@@ -353,7 +354,8 @@ def table_lines(records: Sequence[dict[str, Any]]) -> tuple[list[str], list[list
     headers = ["device", "axis", "f/Hz", "bench", "direction", "p", "Grubbs", "double Grubbs",
                "Cochran", "Mandel h", "Mandel k", "not applicable"]  # fmt: skip
     rows = [
-        [r["device"], r["axis"], f"{r['frequency_hz']:g}", r["bench"], r["direction"],
+        [r["device"], r["axis"], f"{r['frequency_hz']:g}", r["bench"],
+         with_kind(r["direction"], r.get("quantity")),
          str(r["p"]), *(verdict_text(r[t], who=True) if r[t]["applicable"] else "n/a"
                          for t in ("grubbs_single", "grubbs_double", "cochran")),
          *(flagged_labs(r, key) if r[f"mandel_{key}"]["applicable"] else "n/a"

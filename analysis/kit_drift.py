@@ -57,15 +57,11 @@ class Drift:
             return shift, u_add
         s = np.array([self.series.get((int(k), int(g)), -1) for k, g in
                       zip(kit.tolist(), group.tolist(), strict=True)], dtype=np.intp)  # fmt: skip
-        f, on = self.fit, s >= 0
-        on[on] = f.linear[s[on]]
-        dt_, b = day[on] - f.t_mean[s[on]], f.slope[s[on]]
-        b_u_t = b * (0.0 if u_day is None else u_day[on])  # hypot(x, 0) is |x| exactly
-        if treatment == DriftTreatment.U_STAB:
-            u_add[on] = np.hypot(f.u_stab(s[on], day[on]), b_u_t)
-        else:
-            shift[on] = -b * dt_
-            u_add[on] = np.hypot(dt_ * f.u_slope[s[on]], b_u_t)
+        on = s >= 0
+        shift[on], u_add[on] = self.fit.at_date(
+            s[on], day[on], None if u_day is None else u_day[on],
+            correct=treatment != DriftTreatment.U_STAB,
+        )  # fmt: skip
         return shift, u_add
 
     def rows(self, kit_names: list[str], g: int, circular: bool) -> list[dict]:

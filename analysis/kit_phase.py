@@ -48,8 +48,9 @@ class OnLine:
                    "angles")  # fmt: skip
         else:
             why = "its phases point in every direction (mean resultant length 0)"
+        # the reader has no docs/: the note says it all in words (docs/domain.md §14)
         return (f"{why}, so the point is {what}; its scores are against the round's "
-                "assigned value (docs/domain.md §14)")  # fmt: skip
+                "assigned value")  # fmt: skip
 
 
 def on_line(

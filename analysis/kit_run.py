@@ -6,7 +6,7 @@ kits it returns them untouched (today's numbers, bit for bit).  Otherwise
 
 * each result is on the kit of its participant's first slot (earliest start) whose kit
   holds the point's device, at the date its laboratory states, else at the midpoint of
-  its holding of the kit, with that date's own uncertainty u_t (:mod:`analysis.kit_dates`);
+  its holding of the kit, with that date's own uncertainty u_t (:mod:`labs.kit_dates`);
 * per kit and point the pilot's repeats (``KitMeasurement`` without a participant, u =
   U/k for a change over time) are fitted by ``analysis.core.drift``; where the slope is
   significant every result on that kit is either corrected to the mean date t̄ of the
@@ -32,14 +32,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from analysis.core.phase import wrap
-from analysis.kit_dates import Turn, date_of, day_of, outside
-from analysis.kit_dates import turns as kit_turns
 from analysis.kit_drift import Drift, Repeats, drift_of
 from analysis.kit_link import LinkInput, PointLink, link_point
 from analysis.kit_phase import OnLine, on_line, wrap_link
 from analysis.models import AnalysisRun, KitPointFit, KitScore
 from analysis.selectors import LoadedRound
 from common.quantities import is_circular
+from labs.kit_dates import Turn, date_of, day_of, outside
+from labs.kit_dates import turns as kit_turns
 from labs.models import KitMeasurement, Result
 from proficiency.models import Comparison, Kit, KitItem, MeasurementPoint
 
@@ -134,7 +134,7 @@ def _stated(loaded: LoadedRound) -> dict[int, dt.date]:
 
 def _result_turns(rnd: Round, loaded: LoadedRound) -> Dated:
     """Each result's kit and date: the date its laboratory states (u_t = 0), else its
-    turn's (docs/domain.md §13, ``analysis.kit_dates``)."""
+    turn's (docs/domain.md §13, ``labs.kit_dates``)."""
     stated = _stated(loaded)
     device = np.array([p.device_id for p in loaded.points])[loaded.groups.index]
     n = device.size

@@ -573,7 +573,7 @@ class KitPointFit(models.Model):
     kit_values = models.JSONField(default=list, blank=True, help_text="kit, value, u per kit")
     drift = models.JSONField(
         default=list, blank=True,
-        help_text="per kit: n, model, slope and u(slope) per day, p, t̄, value, u (§13)",
+        help_text="per kit: n, model, slope and u(slope) per day, p, t̄, value, u",
     )  # fmt: skip
     unlinked = models.JSONField(
         default=list, blank=True, help_text="codes of the participants not linked to it"
@@ -582,7 +582,7 @@ class KitPointFit(models.Model):
     doe_covariance = models.JSONField(
         default=dict, blank=True,
         help_text="the covariance of the linked participants' d, factored: codes, own, factor, "
-        "core, cov = diag(own) + factor·core·factorᵀ (§14); empty: not linked",
+        "core, cov = diag(own) + factor·core·factorᵀ; empty: not linked",
     )  # fmt: skip
 
     class Meta:
@@ -610,7 +610,7 @@ class KitScore(models.Model):
     measured_on = models.DateField(
         null=True, blank=True,
         help_text="the date its drift was taken at: the stated date, else the midpoint of its "
-        "holding of the kit (docs/domain.md §13)",
+        "holding of the kit",
     )  # fmt: skip
     drift_correction = models.FloatField(
         default=0.0, help_text="added to the result: −b·(t − t̄) where corrected, else 0"

@@ -29,7 +29,7 @@ from analysis.pipeline import (
     to_json,
 )
 from common.quantities import DEFAULT as DEFAULT_QUANTITY
-from common.quantities import shown_group
+from common.quantities import label_shown, shown_group, with_kind
 from common.sizes import counted
 from labs.importers import write_table
 from labs.importers.values import escape_text
@@ -241,10 +241,9 @@ def _point(rec: dict[str, Any]) -> tuple[Any, ...]:
 
 
 def _direction(rec: dict[str, Any]) -> str:
-    """The direction column of the text table, with the quantity kind where it is not the
-    magnitude (``tangential, phase``)."""
-    quantity = rec.get("quantity", DEFAULT_QUANTITY)
-    return rec["direction"] if quantity == DEFAULT_QUANTITY else f"{rec['direction']}, {quantity}"
+    """The direction column of the text table, with the kind's label where it is not the
+    magnitude (``tangential, sensitivity phase``): JSON and CSV keep its name (``phase``)."""
+    return with_kind(rec["direction"], rec.get("quantity"))
 
 
 _MATRIX_KEYS = {
@@ -252,11 +251,16 @@ _MATRIX_KEYS = {
 }  # fmt: skip
 
 
-def _group_label(m: dict[str, Any]) -> str:
+def _group_label(m: dict[str, Any], *, words: bool = False) -> str:
     """``device=MEMS 1, axis=X``: the group's keys, the quantity only where it is not the
-    magnitude (a table of magnitudes reads as before kinds existed)."""
+    magnitude (a table of magnitudes reads as before kinds existed): ``quantity=phase`` in
+    the CSV's ``group`` column, the kind's label in the text table (``words``:
+    ``device=MEMS 1, axis=X, sensitivity phase``)."""
     group = shown_group({k: v for k, v in m.items() if k not in _MATRIX_KEYS})
-    parts = [f"{k}={_fmt(v)}" for k, v in group.items()]
+    parts = [
+        label_shown(str(v)) if words and k == "quantity" else f"{k}={_fmt(v)}"
+        for k, v in group.items()
+    ]
     return ", ".join(parts) or "all results"
 
 
@@ -325,7 +329,7 @@ def render_table(doc: dict[str, list[dict[str, Any]]]) -> str:
         for s in doc["scores"]
     ]))  # fmt: skip
     for m in doc["compatibility"]:
-        parts += ["", f"COMPATIBILITY of {m['factor']} ({_group_label(m)}): "
+        parts += ["", f"COMPATIBILITY of {m['factor']} ({_group_label(m, words=True)}): "
                   f"{counted(m['incompatible_pairs'], 'incompatible pair')}"]  # fmt: skip
         levels = [str(v) for v in m["levels"]]
         rows = [

@@ -33,6 +33,7 @@ from analysis.charts import (
     _runs,
     _with_rc,
     axis_unit,
+    value_axis,
 )
 from analysis.charts import svg_of as _svg_of
 from analysis.core import graphs
@@ -240,7 +241,7 @@ mandel_chart = _svg_of(mandel_figure)
 @_with_rc
 def density_figure(
     values: ArrayLike, *, assigned_value: float, assigned_expanded_uncertainty: float,
-    title: str, unit: str, own_value: float | None = None,
+    title: str, unit: str, own_value: float | None = None, quantity: str | None = None,
 ) -> Figure:  # fmt: skip
     """The kernel density of one point's results (``core.graphs.kernel_density``), the
     results as a rug, x_pt with its ±U band, the reader's own result in ``OWN``."""
@@ -263,7 +264,7 @@ def density_figure(
     if own_value is not None:
         ax.plot([own_value], [0], "|", color=OWN, ms=18, mew=2.4, label="your result")
     ax.set_ylim(bottom=0)
-    ax.set_xlabel(f"Sensitivity ({axis_unit(unit)})")
+    ax.set_xlabel(value_axis(unit, quantity))
     ax.set_ylabel("Density")
     ax.set_title(title)
     fig.legend(loc="outside lower center", ncols=4, frameon=False)

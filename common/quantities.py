@@ -52,6 +52,8 @@ class QuantityKind:
 
 
 _DEG = re.compile(r"\bdeg\b")  # the degree in a unit as written: deg, D/(deg/s)
+_POWER = re.compile(r"\^(-?\d+)")  # a power as typed: m/s^2
+_SUPERSCRIPT = str.maketrans("0123456789-", "⁰¹²³⁴⁵⁶⁷⁸⁹⁻")
 _PER_RAD_S = math.pi / 180.0  # digits per rad/s × π/180 = digits per °/s
 _DEGREES = (("deg", 1.0), ("°", 1.0), ("degree", 1.0), ("degrees", 1.0))
 _RATE_UNITS = tuple(
@@ -126,15 +128,16 @@ def point_unit(name: str | None, device_unit: str) -> str:
 
 def unit_text(unit: str) -> str:
     """``unit`` as a person reads it on a page, in a report or on a chart's axis
-    (docs/domain.md §3.1): degrees as ``°`` (``deg`` → ``°``, ``D/(deg/s)`` → ``D/(°/s)``).
-    Stored values, downloads and the API keep the unit as written (``deg``), and every
-    spelling of :data:`KINDS` stays accepted on input."""
-    return _DEG.sub("°", unit)
+    (docs/domain.md §3.1): degrees as ``°`` (``deg`` → ``°``, ``D/(deg/s)`` → ``D/(°/s)``),
+    powers as superscripts (``D/(m/s^2)`` → ``D/(m/s²)``).  Stored values, downloads and
+    the API keep the unit as written (``deg``, ``m/s^2``), and every spelling of
+    :data:`KINDS` stays accepted on input."""
+    return _POWER.sub(lambda m: m.group(1).translate(_SUPERSCRIPT), _DEG.sub("°", unit))
 
 
 def with_unit(number: str, unit: str) -> str:
     """``number`` and its unit as written (docs/domain.md §3.1): no space before the degree
-    sign (``-1.92°``), one before any other unit (``418.2 D/(m/s^2)``); the number alone
+    sign (``-1.92°``), one before any other unit (``418.2 D/(m/s²)``); the number alone
     without a unit."""
     shown = unit_text(unit)
     if not shown:
@@ -142,11 +145,28 @@ def with_unit(number: str, unit: str) -> str:
     return f"{number}{shown}" if shown == "°" else f"{number} {shown}"
 
 
+def per_day(unit: str) -> str:
+    """The unit of a change per day of values in ``unit`` (a drift's slope, docs/domain.md
+    §13), as stored units are written (``unit_text`` shows it): ``deg/d``, a compound unit
+    bracketed so that one solidus is not followed by another (``(D/(m/s^2))/d``); ``""``
+    for no unit."""
+    if not unit:
+        return ""
+    return f"({unit})/d" if "/" in unit else f"{unit}/d"
+
+
 def label_shown(name: str | None) -> str:
     """The kind as words where a point's label names it (``common.points.point_label``, the
     pages): the registry's label (``angular-rate sensitivity``), or ``""`` for the
     magnitude, so a round of magnitudes reads as before kinds existed."""
     return "" if (name or DEFAULT) == DEFAULT else kind(name).label
+
+
+def with_kind(text: str, name: str | None) -> str:
+    """``text`` followed by the kind's label where it is not the magnitude (``tangential,
+    sensitivity phase``), as a point's label names it; ``text`` alone for a magnitude."""
+    shown = label_shown(name)
+    return f"{text}, {shown}" if shown else text
 
 
 def shown_group(group: Mapping[str, object]) -> dict[str, object]:

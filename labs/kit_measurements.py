@@ -14,7 +14,6 @@ import csv
 import datetime as dt
 import io
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,9 +27,11 @@ from common import quantities
 from common.errors import ValidationFailed
 from common.points import PointKey, point_label
 from labs.importers.values import NUMBER_RE, RANGE_TEXT, in_range
-from labs.models import KitMeasurement, KitSlot, Participant
-from labs.selectors import comparison_table
-from proficiency.models import Kit
+from labs.kit_dates import day_of
+from labs.kit_dates import turns as kit_turns
+from labs.models import KitMeasurement, KitSlot, Participant, Result
+from labs.selectors import comparison_table, current_submissions
+from proficiency.models import Kit, KitItem, MeasurementPoint
 
 MAX_MEASUREMENTS = 100_000
 #: a kit's measurement lies within this many years of its round (:func:`_in_round`)
@@ -207,7 +208,9 @@ def kit_linking_counts(kit: Kit) -> list[tuple[str, int]]:
 @dataclass(frozen=True)
 class DriftRow:
     """One point of a kit: the pilot's repeats, the model chosen and what it means for the
-    loop (the largest u_stab at a participant's slot, were the drift not corrected)."""
+    loop: the largest u the drift adds to an observation on this kit, were it not
+    corrected (√(u_stab(t)² + b²·u_t²) at each date the analysis gives one, ``u_stab_max``),
+    and the unit of the point's values (``unit``, as stored; the slope's is per day)."""
 
     label: str
     n: int
@@ -220,10 +223,11 @@ class DriftRow:
     u_slope: float
     p_value: float
     u_stab_max: float
+    unit: str = ""
 
-
-def _days(dates: Sequence[dt.date]) -> np.ndarray:
-    return np.array([d.toordinal() for d in dates], dtype=np.float64)
+    @property
+    def slope_unit(self) -> str:
+        return quantities.per_day(self.unit)
 
 
 def _series_values(series: list[KitMeasurement]) -> list[float]:
@@ -239,13 +243,16 @@ def kit_drift(kit: Kit) -> tuple[list[DriftRow], list[str]]:
     """The drift of every point the pilot measured at least twice on two dates
     (analysis.core.drift; u of a change over time = U/k of each repeat; a phase on its
     values unwrapped about their circular mean, docs/domain.md §14), and notes for the
-    points it could not judge.  A linking laboratory's measurements are no repeats."""
-    rows = list(KitMeasurement.objects.filter(kit=kit, participant__isnull=True)
-                .select_related("measurement_point__device")
+    points it could not judge.  A linking laboratory's measurements are no repeats.  The
+    u_stab shown is the analysis run's for the same data (:func:`_loop_dates`, the one rule
+    of ``DriftFit.at_date``, docs/domain.md §13)."""
+    rows = list(KitMeasurement.objects.filter(kit=kit)
+                .select_related("measurement_point__device", "participant")
                 .order_by("measurement_point", "measured_on"))  # fmt: skip
     by_point: dict[int, list[KitMeasurement]] = {}
     for m in rows:
-        by_point.setdefault(m.measurement_point_id, []).append(m)
+        if m.participant_id is None:
+            by_point.setdefault(m.measurement_point_id, []).append(m)
     notes, usable = [], []
     for series in by_point.values():
         label = str(series[0].measurement_point)
@@ -259,26 +266,71 @@ def kit_drift(kit: Kit) -> tuple[list[DriftRow], list[str]]:
     groups = Groups.from_index(np.repeat(np.arange(len(usable)), [len(s) for s in usable]))
     try:
         u = [m.expanded_uncertainty / m.coverage_factor for m in flat]
-        days = _days([m.measured_on for m in flat])
+        days = np.array([day_of(m.measured_on) for m in flat], dtype=np.float64)
         values = [v for series in usable for v in _series_values(series)]
         fit: DriftFit = drift_fit(days, values, groups, u)
     except CoreInputError as exc:
         raise ValidationFailed(str(exc)) from None
-    others = KitSlot.objects.filter(kit=kit).exclude(participant__is_reference=True)
-    mids = [s.starts_on + (s.ends_on - s.starts_on) / 2 for s in others]
-    return [_drift_row(fit, g, series, mids) for g, series in enumerate(usable)], notes
+    linking = [m for m in rows if m.participant_id is not None]
+    dated = _loop_dates(kit, [s[0].measurement_point for s in usable], linking)
+    return [_drift_row(fit, g, series, dated[g]) for g, series in enumerate(usable)], notes
+
+
+#: per point, the days at which the analysis sees a kit and each day's own u_t
+LoopDates = tuple[list[float], list[float]]
+
+
+def _loop_dates(kit: Kit, points: list[MeasurementPoint],
+                linking: list[KitMeasurement]) -> list[LoopDates]:  # fmt: skip
+    """Per point: the dates (days) and their own standard uncertainties u_t at which the
+    analysis run sees this kit (docs/domain.md §13, §14): each participant whose result is
+    on it (its first slot on a kit holding the point's device) at the date its current
+    accepted result states (u_t = 0), else at its turn's (``labs.kit_dates``: the midpoint
+    of its holding, late dispatch clamped); each linking laboratory's measurement of it at
+    its own date (u_t = 0)."""
+    comparison = kit.comparison
+    kits = list(Kit.objects.filter(comparison=comparison).order_by("name", "pk"))
+    index = {k.pk: i for i, k in enumerate(kits)}
+    mine = index[kit.pk]
+    holds = set(KitItem.objects.filter(kit__in=kits).values_list("kit_id", "device_id"))
+    turns = kit_turns(comparison, index)
+    stated = dict(
+        ((code, pid), on) for code, pid, on in Result.objects.filter(
+            submission__in=current_submissions(comparison), measured_on__isnull=False,
+            measurement_point__in=points,
+        ).values_list("submission__participant__code", "measurement_point_id", "measured_on")
+    )  # fmt: skip
+    out = []
+    for point in points:
+        days: list[float] = []
+        u_days: list[float] = []
+        for code, listed in turns.items():
+            held = [t for t in listed if (kits[t.kit].pk, point.device_id) in holds]
+            if not held or held[0].kit != mine:
+                continue
+            on = stated.get((code, point.pk))
+            days.append(held[0].day if on is None else day_of(on))
+            u_days.append(held[0].u_day if on is None else 0.0)
+        for m in linking:
+            if m.measurement_point_id == point.pk:
+                days.append(day_of(m.measured_on))
+                u_days.append(0.0)
+        out.append((days, u_days))
+    return out
 
 
 def _drift_row(fit: DriftFit, g: int, series: list[KitMeasurement],
-               mids: list[dt.date]) -> DriftRow:  # fmt: skip
-    u_stab = fit.u_stab(np.full(len(mids), g), _days(mids)) if mids else np.zeros(1)
+               dated: LoopDates) -> DriftRow:  # fmt: skip
+    days, u_days = dated
+    _, u_add = fit.at_date(np.full(len(days), g), days, u_days, correct=False)
     value = float(fit.value[g])
-    if quantities.is_circular(series[0].measurement_point.quantity):
+    point = series[0].measurement_point
+    if quantities.is_circular(point.quantity):
         value = float(wrap(value))
     return DriftRow(
-        label=str(series[0].measurement_point), n=int(fit.n[g]),
+        label=str(point), n=int(fit.n[g]),
         first=series[0].measured_on, last=series[-1].measured_on, model=fit.model[g],
         value=value, u_value=float(fit.u_value[g]), slope_per_day=float(fit.slope[g]),
         u_slope=float(fit.u_slope[g]), p_value=float(fit.p_value[g]),
-        u_stab_max=float(u_stab.max()),
+        u_stab_max=float(u_add.max()) if days else 0.0, unit=point.value_unit,
     )  # fmt: skip

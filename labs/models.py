@@ -217,7 +217,7 @@ class Result(models.Model):
     measured_on = models.DateField(
         null=True, blank=True,
         help_text="The date the laboratory states it measured the value; null: not stated "
-        "(a kit's drift is then taken over its holding of the kit, docs/domain.md §13)",
+        "(a kit's drift is then taken over its holding of the kit)",
     )  # fmt: skip
 
     class Meta:

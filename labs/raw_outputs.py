@@ -116,10 +116,11 @@ def _rate_figures(axis: dict[str, Any], point: MeasurementPoint) -> Figures:
     """An angular-rate point's figures in the point's unit: the gyroscope gives digits
     per °/s; a point in digits per rad/s takes them × 180/π (``common.quantities``)."""
     if not axis["sensitivity_unit"].startswith("digits"):
+        shown = quantities.unit_text
         raise CoreInputError(
-            f"axis {axis['axis']}: the gyroscope output is in deg/s (gyro_unit), so its "
-            f"sensitivity is in {axis['sensitivity_unit']}, not the point's "
-            f"{point.value_unit}; upload the digits (gyro_unit 'digits')"
+            f"axis {axis['axis']}: the gyroscope output is in °/s (gyro_unit 'deg/s'), so "
+            f"its sensitivity is in {shown(axis['sensitivity_unit'])}, not the point's "
+            f"{shown(point.value_unit)}; upload the digits (gyro_unit 'digits')"
         )
     own = quantities.own_unit(point.quantity, point.value_unit)
     factor = own[1] if own else 1.0  # a value in the point's unit × factor = per °/s

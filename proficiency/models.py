@@ -141,7 +141,7 @@ class Comparison(models.Model):
     drift_treatment = models.CharField(
         max_length=8, choices=DriftTreatment.choices, default=DriftTreatment.CORRECT,
         help_text="Where the pilot's repeats show a kit drifting (a significant slope): correct "
-        "for it, or add its u_stab at each participant's date (docs/domain.md §13).",
+        "for it, or add its u_stab at each participant's date.",
     )  # fmt: skip
     reminder_days = models.CharField(
         max_length=60,

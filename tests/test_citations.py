@@ -78,3 +78,52 @@ def test_the_checks_see_bad_citations():
     assert OUTSIDE.search("see formats.md §1") and OUTSIDE.search("../shared/spec/x")
     assert OUTSIDE.search('Path(x).parent / "shared" / "spec" / "reference-data"')
     assert not OUTSIDE.search("docs/domain.md §3")
+
+
+# --- what a reader sees cites no document of ours ---------------------------------------------
+
+APPS = ("common", "proficiency", "labs", "analysis", "coordination", "config")
+#: a citation of our docs in text a person reads; a standard's clause (ISO 5725-2 §7) is fine
+OURS = re.compile(r"docs/[a-z]+\.md|[a-z]+\.md §|(?<!ISO )(?<!\d )(?<!\d\d )§")
+TEMPLATE_COMMENT = re.compile(r"\{#.*?#\}|\{% comment %\}.*?\{% endcomment %\}", re.DOTALL)
+
+
+def _shown_strings(source: str) -> list[tuple[int, str]]:
+    """The string constants of a module that are not docstrings: notes, messages, help
+    texts, report text (f-strings' literal parts included)."""
+    import ast
+
+    tree = ast.parse(source)
+    docs = {
+        id(node.value)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Expr) and isinstance(node.value, ast.Constant)
+    }
+    return [
+        (node.lineno, node.value)
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs
+    ]
+
+
+def test_no_reader_is_sent_to_our_docs():
+    """Run notes, messages, help texts, report text and pages say what they mean in words:
+    a reader has no docs/ (comments and docstrings keep their citations)."""
+    hits = []
+    for path in tracked_text_files():
+        rel = path.relative_to(ROOT)
+        if rel.parts[0] == "templates":
+            text = TEMPLATE_COMMENT.sub("", path.read_text())
+            hits += [f"{rel}: {m.group(0)}" for m in OURS.finditer(text)]
+        elif rel.parts[0] in APPS and path.suffix == ".py" and "migrations" not in rel.parts:
+            for line, value in _shown_strings(path.read_text()):
+                hits += [f"{rel}:{line}: {value[:80]!r}" for _ in OURS.finditer(value)][:1]
+    assert hits == []
+
+
+def test_the_reader_check_sees_a_citation():
+    assert OURS.search("its scores stand (docs/domain.md §14)")
+    assert OURS.search("by least squares (§14)") and OURS.search("see interfaces.md §1")
+    assert not OURS.search("ISO 5725-2 §7.3.4") and not OURS.search("ISO 13528:2022 §9")
+    assert not OURS.search("/api/docs/")
+    assert TEMPLATE_COMMENT.sub("", "a {# docs/domain.md §4 #} b") == "a  b"

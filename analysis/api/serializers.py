@@ -33,7 +33,8 @@ class RunParameters(serializers.Serializer):
     )
     drift_treatment = serializers.ChoiceField(
         choices=DriftTreatment.choices, required=False,
-        help_text="what a drifting kit did to the scores (docs/domain.md §13)",
+        help_text="what a drifting kit did to the scores: correct (each result corrected to "
+        "the mean date of the pilot's repeats) or u_stab (its u_stab added)",
     )  # fmt: skip
 
 

@@ -80,6 +80,28 @@ class DriftFit:
         s, dt = self._at(series, t)
         return np.where(self.linear[s], np.abs(self.slope[s] * dt) / np.sqrt(3.0), 0.0)
 
+    def at_date(
+        self, series: ArrayLike, t: ArrayLike, u_t: ArrayLike | None = None, *, correct: bool
+    ) -> tuple[FloatArray, FloatArray]:
+        """What the drift does to an observation of each given series at date ``t`` (days)
+        with that date's own standard uncertainty ``u_t`` (none: 0): the value added and
+        the standard uncertainty added.  Where the series drifts, corrected (``correct``):
+        −b·(t − t̄) and √((t − t̄)²·u²(b) + b²·u_t²); kept: 0 and √(u_stab(t)² + b²·u_t²),
+        the date's uncertainty counted in either (docs/domain.md §13).  Where it does not
+        drift: 0 and 0.  The one rule of the analysis run and of the kits page's preview."""
+        s, dt = self._at(series, t)
+        shift, u_add = np.zeros(s.size), np.zeros(s.size)
+        on = self.linear[s]
+        dt, b = dt[on], self.slope[s[on]]
+        # hypot(x, b·0) is |x| exactly: no date uncertainty changes nothing
+        b_u_t = b * (0.0 if u_t is None else np.asarray(u_t, dtype=np.float64)[on])
+        if correct:
+            shift[on] = -b * dt
+            u_add[on] = np.hypot(dt * self.u_slope[s[on]], b_u_t)
+        else:
+            u_add[on] = np.hypot(np.abs(b * dt) / np.sqrt(3.0), b_u_t)  # u_stab(t), b·u_t
+        return shift, u_add
+
     def _at(self, series: ArrayLike, t: ArrayLike) -> tuple[IntArray, FloatArray]:
         s = np.asarray(series, dtype=np.intp)
         tt = np.asarray(t, dtype=np.float64)

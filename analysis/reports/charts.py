@@ -32,7 +32,7 @@ from matplotlib.figure import Figure
 from matplotlib.legend import Legend
 from matplotlib.path import Path
 
-from analysis.charts import axis_unit
+from analysis.charts import value_axis
 
 matplotlib.use("Agg")
 
@@ -235,6 +235,7 @@ class PointChart(Shared):
         u_x_pt_expanded: float,
         title: str,
         unit: str,
+        quantity: str | None = None,
     ) -> None:
         self.index = _positions(labels)
         self.values, self.expanded = values, expanded
@@ -261,7 +262,7 @@ class PointChart(Shared):
                     ecolor=LAB, capsize=cap, lw=lw,
                 )  # fmt: skip
             self.fig.subplots_adjust(**_x_axis(ax, labels))
-            ax.set_ylabel(f"Sensitivity ({axis_unit(unit)})")
+            ax.set_ylabel(value_axis(unit, quantity))
             ax.ticklabel_format(axis="y", useOffset=False)
             ax.set_title(title)
             ax.legend(loc="best", fontsize=7, frameon=False)
@@ -292,6 +293,7 @@ def point_chart(
     u_x_pt_expanded: float,
     title: str,
     unit: str,
+    quantity: str | None = None,
 ) -> PointChart:
     """The (cached) chart of one point: every report of a run shares it."""
     return PointChart(
@@ -302,6 +304,7 @@ def point_chart(
         u_x_pt_expanded=u_x_pt_expanded,
         title=title,
         unit=unit,
+        quantity=quantity,
     )
 
 
@@ -357,7 +360,11 @@ def en_chart(labs: tuple[str, ...], max_en: tuple[float, ...], *, limit: float) 
 
 @functools.lru_cache(maxsize=16)
 def frequency_chart(
-    series: tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...], *, title: str, unit: str
+    series: tuple[tuple[str, tuple[float, ...], tuple[float, ...]], ...],
+    *,
+    title: str,
+    unit: str,
+    quantity: str | None = None,
 ) -> Raster:
     """Sensitivity against frequency, one line per (bench, direction, axis); the same in
     every report of a run, so the raster itself is cached."""
@@ -366,7 +373,7 @@ def frequency_chart(
         for label, freqs, values in series:
             ax.plot(freqs, values, marker="o", ms=3, lw=1, label=label)
         ax.set_xlabel("Frequency (Hz)")
-        ax.set_ylabel(f"Sensitivity ({axis_unit(unit)})")
+        ax.set_ylabel(value_axis(unit, quantity))
         ax.ticklabel_format(axis="y", useOffset=False)
         ax.set_title(title)
         ax.legend(loc="center left", bbox_to_anchor=(1.0, 0.5), fontsize=6, frameon=False)

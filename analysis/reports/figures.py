@@ -66,6 +66,7 @@ def _point_chart(
             u_x_pt_expanded=a.expanded_uncertainty,
             title=p.full_label,
             unit=p.unit,
+            quantity=p.quantity,
         )
     assert isinstance(chart, charts.PointChart)
     return chart
@@ -232,7 +233,8 @@ def _frequency_charts(data: ReportData) -> list[Flowable]:
     out: list[Flowable] = []
     for device, quantity, unit, series in data.round.frequency:
         title = f"{device}: median {label_shown(quantity) or 'sensitivity'} against frequency"
-        out.append(RasterImage(charts.frequency_chart(series, title=title, unit=unit)))
+        out.append(RasterImage(charts.frequency_chart(series, title=title, unit=unit,
+                                                      quantity=quantity)))  # fmt: skip
     return out
 
 

@@ -10,7 +10,7 @@ from reportlab.platypus import Flowable, Spacer
 
 from analysis.reports.data import KitCorrelations, KitLink, KitSection, ReportData
 from analysis.reports.sections import by_unc, intro, para, table, unc
-from common.quantities import with_unit
+from common.quantities import per_day, unit_text, with_unit
 
 
 def kits_section(data: ReportData) -> list[Flowable]:
@@ -20,23 +20,7 @@ def kits_section(data: ReportData) -> list[Flowable]:
     flow: list[Flowable] = [para("<b>Linking and drift</b>"), para(escape(k.text))]
     flow += [para(escape(n), "bullet") for n in k.notes[:20]]
     if k.drift:
-        rows = [["Device", "Point", "Kit", "n", "Model", "Slope per day", "u(slope)", "p"]]
-        for d in k.drift:
-            p = data.points[d.point]
-            rows.append(
-                [
-                    p.device,
-                    p.label,
-                    d.kit,
-                    str(d.n),
-                    d.model,
-                    by_unc(d.slope, d.u_slope),
-                    unc(d.u_slope),
-                    "–" if d.p_value is None else f"{d.p_value:.3f}",
-                ]
-            )
-        widths = [16 * mm, 58 * mm, 16 * mm, 8 * mm, 16 * mm, 26 * mm, 18 * mm, 14 * mm]
-        flow += [Spacer(1, 2 * mm), table(rows, widths, wrap=(0, 1, 2))]
+        flow += [Spacer(1, 2 * mm), _drift_table(data, k)]
     if k.links and data.is_participant:
         flow += [Spacer(1, 2 * mm), _links_table(data, k)]
     elif k.links and k.linked_round:
@@ -46,6 +30,32 @@ def kits_section(data: ReportData) -> list[Flowable]:
         for c in k.correlations:
             flow += _correlations(data, c)
     return flow
+
+
+def _drift_table(data: ReportData, k: KitSection) -> Flowable:
+    """The drift per kit and point; a slope in its point's unit per day, in the headings
+    where the table has one unit, else in each cell (docs/domain.md §3.1)."""
+    units = {per_day(data.points[d.point].unit) for d in k.drift}
+    one = units.pop() if len(units) == 1 else None
+    heading = f" ({unit_text(one)})" if one else ""
+    rows = [["Device", "Point", "Kit", "n", "Model", f"Slope{heading}", f"u(slope){heading}", "p"]]
+    for d in k.drift:
+        p = data.points[d.point]
+        unit = "" if one else per_day(p.unit)  # with_unit(x, "") is x
+        rows.append(
+            [
+                p.device,
+                p.label,
+                d.kit,
+                str(d.n),
+                d.model,
+                with_unit(by_unc(d.slope, d.u_slope), unit),
+                with_unit(unc(d.u_slope), unit),
+                "–" if d.p_value is None else f"{d.p_value:.3f}",
+            ]
+        )
+    widths = [16 * mm, 46 * mm, 14 * mm, 8 * mm, 16 * mm, 30 * mm, 28 * mm, 14 * mm]
+    return table(rows, widths, wrap=(0, 1, 2, 5, 6))
 
 
 def _correlations(data: ReportData, c: KitCorrelations) -> list[Flowable]:

@@ -42,6 +42,7 @@ from analysis.reports.tables import (
     wrapped_cells,
 )
 from common import numbers
+from common.quantities import unit_text
 from common.sizes import counted
 
 CONFIDENTIALITY = (
@@ -424,7 +425,8 @@ def artefacts(data: ReportData) -> list[Flowable]:
         if d.nominal is not None:
             pct = " %" if d.tolerance_relative else ""
             tol = f"{d.nominal:g} ± {num(d.tolerance, 'g')}{pct}"
-        rows.append([d.name, d.model or "–", d.serial or "–", tol, d.distribution, d.unit])
+        rows.append([d.name, d.model or "–", d.serial or "–", tol, d.distribution,
+                     unit_text(d.unit)])  # fmt: skip
     return [
         para("3 Artefacts", "h1"),
         table(rows, [18 * mm, 22 * mm, 34 * mm, 34 * mm, 34 * mm, 32 * mm], wrap=(0, 1, 2, 5)),

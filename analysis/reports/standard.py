@@ -138,7 +138,8 @@ def point_graphs(data: ReportData) -> list[Flowable]:
         i = _own(rows.labs, data.own_code)
         label, unit = p.full_label, p.unit
         density = _cached(data, ("density", index), functools.partial(
-            density_chart, rows, a.value, a.expanded_uncertainty, label, unit))  # fmt: skip
+            density_chart, rows, a.value, a.expanded_uncertainty, label, unit,
+            p.quantity))  # fmt: skip
         assert isinstance(density, DensityChart)
         mine = None if i is None else rows.values[i]
         densities.append(RasterImage(density.raster, density.overlay(mine)))
@@ -154,12 +155,18 @@ def point_graphs(data: ReportData) -> list[Flowable]:
 
 
 def density_chart(
-    rows: PointValues, x_pt: float, big_u_pt: float, label: str, unit: str
+    rows: PointValues,
+    x_pt: float,
+    big_u_pt: float,
+    label: str,
+    unit: str,
+    quantity: str | None = None,
 ) -> DensityChart:
     """``density_figure`` of a point's results (``core.graphs.kernel_density`` inside)."""
     fig = std.density_figure(rows.values, assigned_value=x_pt,
                              assigned_expanded_uncertainty=big_u_pt,
-                             title=f"Kernel density · {label}", unit=unit)  # fmt: skip
+                             title=f"Kernel density · {label}", unit=unit,
+                             quantity=quantity)  # fmt: skip
     return DensityChart(fig, POINT_SIZE)
 
 

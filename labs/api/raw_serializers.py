@@ -15,7 +15,7 @@ from labs.api.serializers import _inline_enum
 from labs.models import RawFile, RawRecomputation, RawRecord
 from proficiency.models import Axis, Bench, Direction
 
-_META_HELP = "docs/interfaces.md §2 metadata key; replaces the sidecar's"
+_META_HELP = "a metadata key of the raw record's sidecar; replaces the sidecar's"
 
 
 def _meta_field(help_text: str = _META_HELP) -> serializers.CharField:

@@ -179,7 +179,7 @@ class MeasurementPointSerializer(serializers.ModelSerializer):
     )
     in_scope = serializers.SerializerMethodField(
         help_text="For a participant: whether the point is in its scope, i.e. whether it reports "
-        "a result there (docs/domain.md §10); null for a coordinator who does not take part"
+        "a result there; null for a coordinator who does not take part"
     )
 
     class Meta:
@@ -245,7 +245,7 @@ class ResultRowInSerializer(serializers.Serializer):
         required=False, allow_null=True,
         help_text="The date the laboratory measured the result, YYYY-MM-DD (null or absent: "
         "not stated); not before the comparison's first day nor in the future. A kit's "
-        "drift is taken at it (docs/domain.md §13)",
+        "drift is taken at it",
     )  # fmt: skip
     note = serializers.CharField(required=False, max_length=500)
 
@@ -263,7 +263,7 @@ class SubmissionRequestSerializer(serializers.Serializer):
     results = RowsField(
         child=ResultRowInSerializer(),
         help_text="One object per result, keys as the columns of the results table "
-        "(docs/interfaces.md §1; `lab` is not allowed). Numbers may be JSON numbers or strings.",
+        "(`lab` is not allowed). Numbers may be JSON numbers or strings.",
     )
     submit = serializers.BooleanField(
         default=True,

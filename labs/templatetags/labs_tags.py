@@ -13,7 +13,7 @@ from django.db.models import QuerySet
 from django.utils import timezone
 from django.utils.html import format_html
 
-from common import numbers
+from common import numbers, quantities
 from common.points import format_number, point_label
 from common.quantities import unit_text, with_unit
 from labs.access import managed_labs
@@ -198,10 +198,24 @@ def unit_heading(unit: str) -> str:
     return format_html(' <span class="fw-normal small">{}</span>', "(unit in each row)")
 
 
+@register.filter
+def unit(value: str | None) -> str:
+    """A unit as a person reads it (``D/(m/s^2)`` → ``D/(m/s²)``, ``deg`` → ``°``:
+    ``common.quantities.unit_text``)."""
+    return unit_text(value or "")
+
+
+@register.filter
+def per_day(value: str | None) -> str:
+    """The unit of a change per day of values in ``value`` (a drift's slope), as stored:
+    ``deg/d``, ``(D/(m/s^2))/d`` (``common.quantities.per_day``); ``unit`` shows it."""
+    return quantities.per_day(value or "")
+
+
 @register.simple_tag
 def unit_after(unit: str) -> str:
     """A cell's unit right after its number, as written (docs/domain.md §3.1): ``°`` with
-    no space (``-1.92°``), any other unit after a space (``418.2 D/(m/s^2)``)."""
+    no space (``-1.92°``), any other unit after a space (``418.2 D/(m/s²)``)."""
     shown = unit_text(unit)
     gap = "" if shown == "°" else " "
     return format_html('{}<span class="small text-body-secondary">{}</span>', gap, shown)

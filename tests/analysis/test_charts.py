@@ -78,3 +78,35 @@ def test_a_thousand_labs_chart_writes_only_the_readers_code_and_how_many():
         assert "Participant (1000, codes not written)" in svg
     small = charts.en_chart(codes[:80], [0.1] * 80, title="t", highlight="L0007")
     assert "L0006" in small and "L0079" in small  # up to MANY labs, every code
+
+
+def test_a_value_axis_names_the_quantity_and_its_unit(monkeypatch):
+    """Sensitivity for a magnitude as ever; a phase's and an angular rate's axis the kind's
+    label, on the pages' charts and the reports' (not "Sensitivity (°)")."""
+    from analysis.reports import charts as report_charts
+    from analysis.standard_charts import density_figure
+
+    assert charts.value_axis("D/(m/s^2)") == "Sensitivity (D/(m/s²))"
+    assert charts.value_axis("deg", "phase") == "Sensitivity phase (°)"
+    assert charts.value_axis("D/(deg/s)", "angular_rate") == "Angular-rate sensitivity (D/(°/s))"
+    values = [1.2, 1.5, 1.4]
+    fig = charts.point_figure(LABS, values, [0.2] * 3, assigned_value=1.4,
+                              assigned_expanded_uncertainty=0.1, title="t", unit="deg",
+                              quantity="phase")  # fmt: skip
+    assert fig.axes[0].get_ylabel() == "Sensitivity phase (°)"
+    fig = density_figure(values, assigned_value=1.4, assigned_expanded_uncertainty=0.1,
+                         title="t", unit="deg", quantity="phase")  # fmt: skip
+    assert fig.axes[0].get_xlabel() == "Sensitivity phase (°)"
+    # a report's chart keeps its raster only: its axis read as it is frozen
+    drawn: list[str] = []
+    freeze = report_charts.Shared._freeze
+
+    def frozen(self: report_charts.Shared) -> None:
+        drawn.append(self.ax.get_ylabel())
+        freeze(self)
+
+    monkeypatch.setattr(report_charts.Shared, "_freeze", frozen)
+    report_charts.PointChart(tuple(LABS), tuple(values), (0.2,) * 3, x_pt=1.4,
+                             u_x_pt_expanded=0.1, title="t", unit="D/(deg/s)",
+                             quantity="angular_rate")  # fmt: skip
+    assert drawn == ["Angular-rate sensitivity (D/(°/s))"]

@@ -11,8 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from analysis.kit_dates import held, holding, midpoint, outside
 from analysis.models import KitPointFit, KitScore
+from labs.kit_dates import held, holding, midpoint, outside
 from labs.kits import handover_dispatch, handover_receive
 from labs.models import KitSlot, Result
 from tests.analysis.kit_rounds import START, add_kit, make_round, pilot_series, started
@@ -224,3 +224,39 @@ def test_kept_constant_the_date_uncertainty_adds_to_u_stab(drifting, run_of):
     hand = math.sqrt((b * (t - t_mean)) ** 2 / 3 + b**2 * 100 / 12)
     assert ks.drift_correction == 0.0
     assert ks.u_drift == pytest.approx(hand, rel=1e-12)
+
+
+@pytest.mark.django_db
+def test_the_kits_pages_u_stab_is_the_runs_u_drift(run_of):
+    """The kits page's largest u_stab (``kit_drift``) is the largest u_drift the run adds,
+    kept constant, to a result on the kit, by the same rule: the pilot states a date near
+    t̄; L1 received the kit four days into its slot and kept it three weeks past its end,
+    so it is dated from its arrival to its slot's end, u_t = 6 d/√12, the farthest."""
+    from labs.kits import kit_drift
+
+    r = make_round()
+    c = r["comparison"]
+    c.drift_treatment = "u_stab"
+    c.save(update_fields=["drift_treatment"])
+    kit = add_kit(r, "Kit A", r["labs"], drift=0.02)
+    slots = list(KitSlot.objects.filter(kit=kit).order_by("position"))
+    came = slots[1].starts_on + dt.timedelta(days=4)
+    _pass_on(kit, slots, 1, noon(came))
+    handover_dispatch(kit=kit, from_slot=slots[1], user=None,
+                      at=noon(slots[1].ends_on + dt.timedelta(days=21)))  # fmt: skip
+    Result.objects.filter(submission__participant__code="L0").update(
+        measured_on=START + dt.timedelta(days=60)
+    )
+    run = run_of(c)
+    rows, notes = kit_drift(kit)
+    assert notes == [] and len(rows) == len(r["points"]) == 2
+    t = (came.toordinal() + slots[1].ends_on.toordinal()) / 2 + 0.5
+    u_t = (slots[1].ends_on - came).days / math.sqrt(12)
+    for point, row in zip(r["points"], rows, strict=True):
+        u_drift = KitScore.objects.filter(run=run, result__measurement_point=point, kit=kit)
+        largest = max(u_drift.values_list("u_drift", flat=True))
+        assert row.u_stab_max == pytest.approx(largest, rel=1e-12)
+        b, _, t_mean = _fit(kit, point)
+        hand = math.hypot(b * (t - t_mean) / math.sqrt(3), b * u_t)
+        assert _kit_score(run, point, "L1").u_drift == pytest.approx(hand, rel=1e-12)
+        assert largest == _kit_score(run, point, "L1").u_drift

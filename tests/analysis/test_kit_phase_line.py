@@ -33,11 +33,11 @@ def test_a_spread_over_90_or_no_centre_is_refused_and_said():
     assert line.note(0, 2) == (
         "its phases spread over 100° about their circular mean, more than 90°: on a line "
         "they need not be the same angles, so the point is not drift-corrected nor linked "
-        "across kits; its scores are against the round's assigned value (docs/domain.md §14)"
+        "across kits; its scores are against the round's assigned value"
     )
     assert line.note(1, 1) == (
         "its phases point in every direction (mean resultant length 0), so the point is not "
-        "drift-corrected; its scores are against the round's assigned value (docs/domain.md §14)"
+        "drift-corrected; its scores are against the round's assigned value"
     )
 
 

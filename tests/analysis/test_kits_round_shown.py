@@ -91,12 +91,16 @@ def test_the_pages_name_the_kind_and_write_degrees_with_the_sign(client, kits):
 def test_the_charts_draw_one_kind_on_one_axis(client, kits):
     client.force_login(kits.coordinators.get())
     charts = visible(get(client, f"/coordinator/{CODE}/charts/"))
-    # the first point's results and density: its own unit, not the device's D/(m/s²)
+    # the first point's results and density: its own quantity and unit, not the device's
+    # sensitivity in D/(m/s²)
     title = "IMU 1 · Z · 5 Hz · curvilinear tangential · angular-rate sensitivity"
-    assert f"Sensitivity (D/(°/s)) {title} x_pt ± U(x_pt)" in charts
-    assert re.search(rf"Sensitivity \(D/\(°/s\)\) [\d. ]+ Density Kernel density · {title}", charts)
-    for kind, unit in (("angular-rate sensitivity", "D/(°/s)"), ("sensitivity phase", "°")):
-        assert f"Sensitivity ({unit}) IMU 1, {kind}: mean of all labs per frequency" in charts
+    assert f"Angular-rate sensitivity (D/(°/s)) {title} x_pt ± U(x_pt)" in charts
+    assert re.search(
+        rf"Angular-rate sensitivity \(D/\(°/s\)\) [\d. ]+ Density Kernel density · {title}", charts
+    )
+    for axis, kind in (("Angular-rate sensitivity (D/(°/s))", "angular-rate sensitivity"),
+                       ("Sensitivity phase (°)", "sensitivity phase")):  # fmt: skip
+        assert f"{axis} IMU 1, {kind}: mean of all labs per frequency" in charts
     assert "Sensitivity (D/(m/s²)) IMU 1: mean of all labs per frequency" in charts
     points = {p.pk: p for p in run_points(kits.analysis_runs.get())}
     pairs = [tuple(map(int, key.split("-"))) for key, _ in point_pairs(list(points.values()))]
@@ -140,7 +144,7 @@ def test_the_report_names_the_kind_writes_degrees_and_keeps_its_cells(kits, tmp_
     )
 
     def per_unit(largest: dict[str, float]) -> str:
-        shown = {"D/(deg/s)": " D/(°/s)", "D/(m/s^2)": " D/(m/s^2)", "deg": "°"}
+        shown = {"D/(deg/s)": " D/(°/s)", "D/(m/s^2)": " D/(m/s²)", "deg": "°"}
         return "; ".join(f"{numbers.uncertainty(largest[u])}{shown[u]}" for u in sorted(largest))
 
     assert set(at_alpine) == {"D/(deg/s)", "D/(m/s^2)", "deg"}

@@ -189,7 +189,7 @@ def test_a_table_of_two_kinds_writes_each_rows_unit(
     html = client.get(f"/coordinator/{r['comparison'].code}/results/kits/").content.decode()
     table = html[html.index("Each participant's kit") :]
     assert table[: table.index("</thead>")].count("(unit in each row)") == 5
-    for point, unit in ((0, "D/(m/s^2)"), (1, "D/(°/s)")):  # stored D/(deg/s), shown with °
+    for point, unit in ((0, "D/(m/s²)"), (1, "D/(°/s)")):  # stored D/(deg/s), shown with °
         k = row_of(r, "L5", point)
         assert k.linked_d is not None and k.linked_u is not None
         d = numbers.round_to_uncertainty(k.linked_d, 2 * k.linked_u, sign=True)
@@ -211,6 +211,62 @@ def test_the_summary_report_gives_the_largest_u_link_per_unit(
     per_unit = [row_of(r, "L5", p).u_link for p in (0, 1)]
     assert all(u is not None for u in per_unit)
     row = summary[summary.index("L5 Kit B") : summary.index("L6 Kit B")]
-    cells = {f"{numbers.uncertainty(per_unit[0])} D/(m/s^2)",
+    cells = {f"{numbers.uncertainty(per_unit[0])} D/(m/s²)",
              f"{numbers.uncertainty(per_unit[1])} D/(°/s)"}  # fmt: skip
     assert all(c in row for c in cells) and row.count("; ") == 1
+
+
+HEADING = '{} <span class="fw-normal text-nowrap d-block small">({})</span>'
+
+
+def test_slopes_and_kit_values_carry_their_unit(client, linked):
+    """A round of one unit: the slope's heading is the point's unit per day, D/(m/s²)
+    written with ², the kit values' the unit itself, on the results' kits page, on the
+    coordinator's kits page (with the kit's value and largest u_stab) and in the report."""
+    client.force_login(linked["coordinator"])
+    code = linked["comparison"].code
+    html = client.get(f"/coordinator/{code}/results/kits/").content.decode()
+    assert HEADING.format("Slope", "(D/(m/s²))/d") in html
+    assert HEADING.format("u(slope)", "(D/(m/s²))/d") in html
+    assert HEADING.format("Kit values (u)", "D/(m/s²)") in html
+    assert "m/s^2" not in html and "(unit in each row)" not in html.split("Participants")[0]
+    kits = client.get(f"/coordinator/{code}/kits/")
+    assert kits.status_code == 200
+    page = kits.content.decode()
+    for heading in ("Value", "Largest u_stab"):
+        assert HEADING.format(heading, "D/(m/s²)") in page
+    assert HEADING.format("Slope", "(D/(m/s²))/d") in page and "m/s^2" not in page
+    summary = " ".join(" ".join(pdf_text(render_report(report_data(run=linked["run"])))).split())
+    assert "Slope ((D/(m/s²))/d)" in summary and "u(slope) ((D/(m/s²))/d)" in summary
+    assert "m/s^2" not in summary  # the artefacts' unit too
+
+
+def test_a_table_of_two_kinds_writes_each_slopes_unit(client, django_capture_on_commit_callbacks):
+    """A magnitude and a phase: no one unit, so each slope and kit value names its own (a
+    phase's in °/d and °), on both pages and in the report."""
+    r = make_round()
+    phase = r["points"][1]
+    phase.quantity = "phase"
+    phase.save(update_fields=["quantity"])
+    Result.objects.filter(measurement_point=phase).update(unit="deg", value=1.5)
+    add_kit(r, "Kit A", r["labs"][:3])
+    add_kit(r, "Kit B", r["labs"][3:], offset=0.6)
+    coordinator = UserFactory.create()
+    r["comparison"].coordinators.add(coordinator)
+    run = started(r["comparison"], django_capture_on_commit_callbacks)
+    client.force_login(coordinator)
+    code = r["comparison"].code
+    html = client.get(f"/coordinator/{code}/results/kits/").content.decode()
+    drift = html[html.index("Drift per kit and point") : html.index("Link per point")]
+    assert drift.count("(unit in each row)") == 2
+    assert drift.count('secondary">°/d</span>') == 4
+    assert drift.count('secondary">(D/(m/s²))/d</span>') == 4
+    link = html[html.index("Link per point") : html.index("Each participant")]
+    assert link.count('text-body-secondary">°</span>') == 2  # one per kit at the phase
+    assert link.count("D/(m/s²)</span>") == 2
+    page = client.get(f"/coordinator/{code}/kits/").content.decode()
+    assert page.count('secondary">°/d</span>') == 4  # two kits: slope and u(slope) each
+    assert page.count('secondary">(D/(m/s²))/d</span>') == 4
+    clear_run_contexts()
+    summary = " ".join(" ".join(pdf_text(render_report(report_data(run=run)))).split())
+    assert summary.count(" °/d") == 4 and summary.count(" (D/(m/s²))/d") == 4

@@ -75,4 +75,17 @@ def test_phases_beside_magnitudes(tmp_path):
     rows = list(csv.DictReader(io.StringIO(csv_text.split("\n\n")[0])))
     assert [r["quantity"] for r in rows].count("phase") == 3
     assert {r["d_percent"] for r in rows if r["quantity"] == "phase"} == {""}
-    assert "tangential, phase" in pt_compare(path, "table")
+    # the text table names the kind by its label; JSON and CSV keep its name
+    table = pt_compare(path, "table", "--compare", "lab")
+    assert "tangential, sensitivity phase" in table and ", phase" not in table
+    assert (
+        "(device=MEMS 1, axis=X, frequency_hz=80.0000, bench=curvilinear, direction="
+        "tangential, sensitivity phase)"
+        in table
+        and "quantity" not in table
+    )
+    consistency = table[table.index("CONSISTENCY") :]
+    assert consistency.count("tangential, sensitivity phase") == 1  # its own row
+    groups = [r["group"] for r in csv.DictReader(io.StringIO(
+        pt_compare(path, "csv", "--compare", "lab").split("\n\n")[1]))]  # fmt: skip
+    assert any(g.endswith("quantity=phase") for g in groups)

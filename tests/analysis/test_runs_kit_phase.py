@@ -146,7 +146,7 @@ def test_phases_spread_over_more_than_90_degrees_are_not_linked(run_of):
     assert said.startswith("its phases spread over 1")
     assert said.endswith("more than 90°: on a line they need not be the same angles, so the "
                          "point is not drift-corrected nor linked across kits; its scores are "
-                         "against the round's assigned value (docs/domain.md §14)")  # fmt: skip
+                         "against the round's assigned value")  # fmt: skip
     assert set(_linked(run, r["phase"]).values()) == {(None, None, None)}
     magnitude = KitPointFit.objects.get(run=run, measurement_point=r["points"][0])
     assert magnitude.reference == "pilot" and magnitude.chi2 is not None

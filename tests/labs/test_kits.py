@@ -201,9 +201,12 @@ def test_the_pilots_repeats_give_each_points_drift(round_):
     t = np.array([(d - days[0]).days for d in days], dtype=float)
     slope = np.polyfit(t, drift, 1, w=np.full(4, 1 / 0.005))[0]
     assert rows[0].slope_per_day == pytest.approx(slope) == pytest.approx(0.01)
-    # the loop's non-pilot slots' midpoints: 16 Jan and 30 Jan; t̄ = 31.5 days after 4 Jan
-    mid = (D(2027, 1, 16) - days[0]).days
-    assert rows[0].u_stab_max == pytest.approx(abs(0.01 * (mid - 31.5)) / np.sqrt(3))
+    # every holder's result is dated, the pilot's too (its first slot, 4–8 Jan: midpoint
+    # 6 Jan, u_t = 4 d/√12), the farthest from t̄ = 31.5 days after 4 Jan: u_stab² + b²·u_t²
+    mid, u_t = 2.0, 4 / np.sqrt(12)
+    assert rows[0].u_stab_max == pytest.approx(
+        np.hypot(0.01 * (31.5 - mid) / np.sqrt(3), 0.01 * u_t), rel=1e-9
+    )
     assert rows[1].u_stab_max == 0.0 and rows[1].value == pytest.approx(np.mean(flat))
 
 

@@ -29,7 +29,7 @@ def test_the_phase_row_names_its_kind_and_unit_and_stores_the_phase_wrapped(clie
     body = visible(client.get(GRID))
     assert body.count('<tr id="row-') == 5
     assert "sensitivity phase" in body and "· °" in body
-    assert "· D/(m/s^2)" in body  # the magnitudes keep the device's unit
+    assert "· D/(m/s²)" in body  # the magnitudes keep the device's unit, written m/s²
     rows = grid_rows(participant)
     at = next(i for i, p in enumerate(rows) if p.quantity == "phase")
     magnitude = next(i for i, p in enumerate(rows) if p.quantity == "magnitude")

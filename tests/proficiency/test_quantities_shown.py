@@ -41,7 +41,15 @@ def test_a_report_label_of_another_kind_names_its_unit():
 
 @pytest.mark.parametrize(
     ("stored", "shown"),
-    [("deg", "°"), ("D/(deg/s)", "D/(°/s)"), ("D/(m/s^2)", "D/(m/s^2)"), ("", "")],
+    [
+        ("deg", "°"),
+        ("D/(deg/s)", "D/(°/s)"),
+        ("D/(m/s^2)", "D/(m/s²)"),
+        ("mV/(m/s^2)", "mV/(m/s²)"),
+        ("m^-1", "m⁻¹"),
+        ("mg/LSB", "mg/LSB"),
+        ("", ""),
+    ],
 )
 def test_a_unit_is_shown_with_the_degree_sign(stored, shown):
     assert quantities.unit_text(stored) == shown
@@ -50,8 +58,15 @@ def test_a_unit_is_shown_with_the_degree_sign(stored, shown):
 def test_no_space_before_the_degree_sign_one_before_any_other_unit():
     assert quantities.with_unit("-1.92", "deg") == "-1.92°"
     assert quantities.with_unit("14.357", "D/(deg/s)") == "14.357 D/(°/s)"
-    assert quantities.with_unit("418.8", "D/(m/s^2)") == "418.8 D/(m/s^2)"
+    assert quantities.with_unit("418.8", "D/(m/s^2)") == "418.8 D/(m/s²)"
     assert quantities.with_unit("3", "") == "3"
+
+
+def test_a_slope_is_in_its_points_unit_per_day():
+    assert quantities.unit_text(quantities.per_day("deg")) == "°/d"
+    assert quantities.unit_text(quantities.per_day("D/(m/s^2)")) == "(D/(m/s²))/d"
+    assert quantities.with_unit("0.012", quantities.per_day("D/(deg/s)")) == "0.012 (D/(°/s))/d"
+    assert quantities.per_day("mg") == "mg/d" and quantities.per_day("") == ""
 
 
 def test_input_still_accepts_deg_and_the_stored_unit_stays_deg():
@@ -90,3 +105,48 @@ def test_a_relative_u_names_its_absolute_value_in_the_unit_as_read():
         Context({"a": rate, "b": absolute})
     )
     assert out == "0.5% (0.071 D/(°/s))|0.071"
+
+
+def test_the_unit_filter_writes_squares_and_degrees():
+    out = Template(
+        "{% load labs_tags %}{{ a|unit }}|{{ b|unit }}|{{ c|per_day|unit }}|{{ d|unit }}"
+    ).render(Context({"a": "mV/(m/s^2)", "b": "D/(deg/s)", "c": "deg", "d": None}))
+    assert out == "mV/(m/s²)|D/(°/s)|°/d|"
+
+
+@pytest.mark.django_db
+def test_the_comparison_pages_write_the_devices_unit_with_a_square(client):
+    """The devices' table of the coordinator's and of a participant's comparison page: the
+    nominal sensitivity and an absolute tolerance in D/(m/s²), as stored D/(m/s^2)."""
+    from tests.factories import (
+        ComparisonFactory,
+        DeviceFactory,
+        MembershipFactory,
+        ParticipantFactory,
+        UserFactory,
+    )
+
+    c = ComparisonFactory.create(status="open")
+    DeviceFactory.create(comparison=c, unit="D/(m/s^2)", nominal_sensitivity=418.0,
+                         tolerance=2.5, tolerance_relative=False)  # fmt: skip
+    coordinator = UserFactory.create()
+    c.coordinators.add(coordinator)
+    member = UserFactory.create()
+    participant = ParticipantFactory.create(comparison=c)
+    MembershipFactory.create(user=member, laboratory=participant.laboratory)
+    for user, url in ((coordinator, f"/coordinator/{c.code}/"),
+                      (member, f"/lab/comparisons/{c.code}/")):  # fmt: skip
+        client.force_login(user)
+        page = client.get(url)
+        assert page.status_code == 200
+        html = page.content.decode()
+        assert "418 D/(m/s²)" in html and "± 2.5 D/(m/s²)" in html and "m/s^2" not in html
+
+
+def test_a_text_names_the_kind_by_its_label():
+    assert quantities.with_kind("tangential", "angular_rate") == (
+        "tangential, angular-rate sensitivity"
+    )
+    assert quantities.with_kind("vertical", "phase") == "vertical, sensitivity phase"
+    assert quantities.with_kind("vertical", "magnitude") == "vertical"
+    assert quantities.with_kind("vertical", None) == "vertical"

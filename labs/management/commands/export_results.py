@@ -10,7 +10,7 @@ from proficiency.models import Comparison
 class Command(BaseCommand):
     help = (
         "Write the current accepted results of a comparison as a CSV/XLSX results table "
-        "(docs/interfaces.md §1, labs by anonymous code), e.g. for pt_compare."
+        "(the upload's columns, labs by anonymous code), e.g. for pt_compare."
     )
 
     def add_arguments(self, parser):

@@ -14,7 +14,7 @@ from proficiency.models import Comparison
 class Command(BaseCommand):
     help = (
         "Import the results of many participants of a comparison from one CSV/XLSX results "
-        "table (docs/interfaces.md §1, the lab column holding each row's participant code): one "
+        "table (the upload's columns, the lab column holding each row's participant code): one "
         "new submitted version per participant, all or nothing. Exit status 2 with every problem "
         "listed when the file is refused."
     )
