@@ -91,8 +91,11 @@ def _labs_table(data: ReportData, k: KitSection) -> Flowable:
         ratio = max((abs(x.d) / x.big_u for x in done if x.big_u and x.d is not None), default=None)
         kits = ", ".join(sorted({x.kit for x in links}))
         shown = "–" if ratio is None else f"{ratio:.2f}"
+        u_link = _largest_u_link(data, done, named)
+        if done and all(x.d == 0 and x.big_u == 0 for x in done):  # the pilot reference itself
+            shown, u_link = "reference", "–"
         rows.append([code, kits, str(len(done)), str(len(links) - len(done)), shown,
-                     _largest_u_link(data, done, named)])  # fmt: skip
+                     u_link])  # fmt: skip
     widths = [14 * mm, 24 * mm, 24 * mm, 20 * mm, 28 * mm, 54 * mm]
     return table(rows, widths, wrap=(1, 5))
 

@@ -127,6 +127,9 @@ def test_the_reports_say_what_was_done(linked):
     assert "Homogeneity: the artefacts travelled in 2 kits" in flat
     assert "Stability: the pilot measured each kit repeatedly over its circulation (4 " in flat
     assert "no measurements of the pilot" not in flat
+    # the pilot is the reference: its row says so instead of a u_link of 0
+    table = flat[flat.find("Lab Kit Points linked") :]
+    assert re.search(r"\bL0 Kit A 2 0 reference – L1 ", table), table[:300]
     k5 = row_of(linked, "L5")
     largest = max(row_of(linked, "L5", p).u_link or 0 for p in (0, 1))
     assert numbers.uncertainty(largest) in summary
