@@ -81,6 +81,22 @@ def started(comparison, capture) -> AnalysisRun:
     return run
 
 
+def analysed_with_coordinators(r: dict, capture, name: str, other_round: str) -> dict:
+    """``r`` with its coordinator (``<name>-coordinator``) and another round's
+    (``<name>-other-coordinator``, of ``other_round``), analysed by a run (:func:`started`);
+    the reports' run contexts cleared."""
+    from analysis.reports.assemble import clear_run_contexts
+    from tests.factories import ComparisonFactory, UserFactory
+
+    r["coordinator"] = UserFactory.create(username=f"{name}-coordinator")
+    r["comparison"].coordinators.add(r["coordinator"])
+    r["other"] = UserFactory.create(username=f"{name}-other-coordinator")
+    ComparisonFactory.create(code=other_round).coordinators.add(r["other"])
+    r["run"] = started(r["comparison"], capture)
+    clear_run_contexts()
+    return r
+
+
 def day_of(slot_start: dt.date, slot_end: dt.date) -> float:
     """A slot's date as the run takes it (no hand-over logged): the mean of the noons."""
     return (slot_start.toordinal() + slot_end.toordinal()) / 2 + 0.5

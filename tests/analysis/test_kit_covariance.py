@@ -17,14 +17,21 @@ from rest_framework.test import APIClient
 from analysis.archive_contents import Audience, archive_entries
 from analysis.kit_results import COVARIANCE_COLUMNS, covariance_of, covariance_rows
 from analysis.models import KitPointFit, KitScore
-from analysis.reports.assemble import clear_run_contexts, report_data
+from analysis.reports.assemble import report_data
 from analysis.reports.render import render_report
 from common import numbers
 from labs.models import Result
 from proficiency.models import ComparisonStatus
-from tests.analysis.kit_rounds import PILOT_U, add_kit, make_round, pilot_series, started
+from tests.analysis.kit_rounds import (
+    PILOT_U,
+    add_kit,
+    analysed_with_coordinators,
+    make_round,
+    pilot_series,
+    started,
+)
 from tests.analysis.reports.conftest import pdf_text
-from tests.factories import ComparisonFactory, MembershipFactory, UserFactory
+from tests.factories import MembershipFactory, UserFactory
 
 pytestmark = pytest.mark.django_db
 
@@ -36,14 +43,7 @@ def two_kits(capture, method: str = "reference") -> dict:
     the observations are the results as stored and the pilot's repeats."""
     r = make_round(method=method)
     r["kits"] = [add_kit(r, "Kit A", r["labs"][:3]), add_kit(r, "Kit B", r["labs"][3:], offset=0.6)]
-    r["coordinator"] = UserFactory.create(username="cov-coordinator")
-    r["comparison"].coordinators.add(r["coordinator"])
-    other = UserFactory.create(username="cov-other-coordinator")
-    ComparisonFactory.create(code="OTHER-02").coordinators.add(other)
-    r["other"] = other
-    r["run"] = started(r["comparison"], capture)
-    clear_run_contexts()
-    return r
+    return analysed_with_coordinators(r, capture, "cov", "OTHER-02")
 
 
 @pytest.fixture

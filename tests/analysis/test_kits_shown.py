@@ -16,9 +16,9 @@ from analysis.reports.render import render_report
 from common import numbers
 from labs.models import Result
 from proficiency.models import ComparisonStatus
-from tests.analysis.kit_rounds import add_kit, make_round, started
+from tests.analysis.kit_rounds import add_kit, analysed_with_coordinators, make_round, started
 from tests.analysis.reports.conftest import pdf_text
-from tests.factories import ComparisonFactory, MembershipFactory, UserFactory
+from tests.factories import MembershipFactory, UserFactory
 
 pytestmark = pytest.mark.django_db
 
@@ -28,14 +28,7 @@ def linked(django_capture_on_commit_callbacks):
     r = make_round()
     add_kit(r, "Kit A", r["labs"][:3])
     add_kit(r, "Kit B", r["labs"][3:], drift=0.02, offset=0.6)
-    r["coordinator"] = UserFactory.create(username="kit-coordinator")
-    r["comparison"].coordinators.add(r["coordinator"])
-    other = UserFactory.create(username="other-coordinator")
-    ComparisonFactory.create(code="OTHER-01").coordinators.add(other)
-    r["other"] = other
-    r["run"] = started(r["comparison"], django_capture_on_commit_callbacks)
-    clear_run_contexts()
-    return r
+    return analysed_with_coordinators(r, django_capture_on_commit_callbacks, "kit", "OTHER-01")
 
 
 def row_of(r, code, point=0) -> KitScore:
