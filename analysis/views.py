@@ -51,6 +51,7 @@ from analysis.viewer import COORDINATOR, Viewer
 from common.errors import ApplicationError
 from common.points import group_text
 from common.quantities import shown_group
+from common.sizes import database_id
 from labs.access import coordinated, coordinated_comparisons, published_participation
 from labs.importers import write_table
 from proficiency.models import Comparison, ComparisonStatus, MeasurementPoint
@@ -78,10 +79,11 @@ def _viewer(request: AuthenticatedHttpRequest, code: str, audience: str) -> View
 
 
 def _chosen_run(comparison: Comparison, run_id: str) -> AnalysisRun | None:
-    if not run_id.isdigit():
+    pk = database_id(run_id)
+    if pk is None:  # no run asked for, or not a run's id: the current one
         return current_run(comparison)
     runs = comparison.analysis_runs.filter(status=R.SUCCEEDED)
-    return get_object_or_404(runs, pk=int(run_id))
+    return get_object_or_404(runs, pk=pk)
 
 
 def _render(request: HttpRequest, viewer: Viewer, page: str, context: dict) -> HttpResponse:

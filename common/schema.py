@@ -25,6 +25,7 @@ PATH_TAGS = (
     ("/analysis-runs", "analysis runs"),
     ("/scores", "scores and compatibility"),
     ("/compatibility", "scores and compatibility"),
+    ("/doe-covariance", "scores and compatibility"),
     ("/devices", "round set-up (coordinators)"),
     ("/measurands/generate", "round set-up (coordinators)"),
     ("/participants", "round set-up (coordinators)"),

@@ -13,3 +13,12 @@ def counted(n: int, noun: str, plural: str | None = None) -> str:
     """``1 measurement point``, ``3 measurement points``, ``2 laboratories`` (with
     ``plural``): a count and its noun, never "point(s)"."""
     return f"{n} {noun if n == 1 else plural or noun + 's'}"
+
+
+def database_id(text: str) -> int | None:
+    """``text`` as a row id when it is plain ASCII digits that fit a bigint, else None:
+    ``"²".isdigit()`` is True in Python but ``int("²")`` fails, and 20 digits overflow
+    PostgreSQL's bigint."""
+    if not (text.isascii() and text.isdigit()) or len(text) > 18:
+        return None
+    return int(text)

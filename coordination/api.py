@@ -19,6 +19,7 @@ from common.api import valid_data
 from common.errors import ValidationFailed
 from common.quantities import DEFAULT as DEFAULT_QUANTITY
 from common.quantities import NAMES as KIND_NAMES
+from common.sizes import database_id
 from labs.access import require_coordinator
 from labs.api.serializers import ScopeSerializer
 from labs.api.views import ApiView
@@ -146,8 +147,7 @@ class Invite(ApiView):
         data = valid_data(InviteSerializer(data=request.data))
         wanted = data["laboratories"]
         scope = data.get("scope")
-        # ids are plain ASCII digits that fit a bigint ("¹".isdigit() is True in Python)
-        ids = [int(w) for w in wanted if w.isascii() and w.isdigit() and len(w) <= 18]
+        ids = [i for i in map(database_id, wanted) if i is not None]
         labs = {str(lab.pk): lab for lab in Laboratory.objects.filter(pk__in=ids)} | {
             lab.name: lab for lab in Laboratory.objects.filter(name__in=wanted)
         }

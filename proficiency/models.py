@@ -99,7 +99,7 @@ def reminder_days_parse(text: str) -> list[int]:
     for item in (t.strip() for t in text.split(",")):
         if not item:
             continue
-        if not item.isdigit() or not 1 <= int(item) <= MAX_REMINDER_DAYS:
+        if not (item.isascii() and item.isdigit()) or not 1 <= int(item) <= MAX_REMINDER_DAYS:
             raise ValueError(
                 f"{item!r} is not a number of days from 1 to {MAX_REMINDER_DAYS}; write whole "
                 "days separated by commas, e.g. 7,1 (empty: no reminders)."

@@ -16,7 +16,7 @@ from rest_framework.test import APIClient
 
 from analysis.archive_contents import Audience, archive_entries
 from analysis.kit_results import COVARIANCE_COLUMNS, covariance_of, covariance_rows
-from analysis.models import KitPointFit, KitScore
+from analysis.models import AnalysisRun, KitPointFit, KitScore
 from analysis.reports.assemble import report_data
 from analysis.reports.render import render_report
 from common import numbers
@@ -170,6 +170,18 @@ def test_the_archive_and_the_download_carry_the_long_form(client, pilot_round):
     response = client.get(f"/coordinator/{code}/results/kits/covariance.csv?run={run.pk}")
     assert response.status_code == 200
     assert csv_of(b"".join(response.streaming_content)) == rows
+    # a ?run= that is not a run's id: the current run ("²".isdigit() is True, int("²")
+    # fails; 20 digits overflow a bigint); another round's run or a run that is not: 404
+    for junk in ("²", "１２", "99999999999999999999", "-1", "1e3"):
+        response = client.get(f"/coordinator/{code}/results/kits/covariance.csv?run={junk}")
+        assert response.status_code == 200, junk
+        assert csv_of(b"".join(response.streaming_content)) == rows
+    other_run = AnalysisRun.objects.exclude(comparison=r["comparison"]).first()
+    for pk in ([other_run.pk] if other_run else []) + [run.pk + 10_000]:
+        assert (
+            client.get(f"/coordinator/{code}/results/kits/covariance.csv?run={pk}").status_code
+            == 404
+        )
     client.force_login(r["other"])
     assert client.get(f"/coordinator/{code}/results/kits/covariance.csv").status_code == 404
 

@@ -113,7 +113,7 @@ def test_a_new_comparison_reminds_seven_and_one_day_before():
     assert reminder_days_parse("7, 1,,7") == [1, 7]
 
 
-@pytest.mark.parametrize("bad", ["7;1", "0", "x", "-1", "400"])
+@pytest.mark.parametrize("bad", ["7;1", "0", "x", "-1", "400", "²", "7,¹"])
 def test_bad_reminder_days_say_what_is_wrong(bad):
     with pytest.raises(ValidationError) as err:
         validate_reminder_days(bad)

@@ -66,6 +66,7 @@ def test_every_operation_has_a_tag_and_run_parameters_are_typed(tmp_path):
     assert tags["post", "/api/v1/comparisons/{code}/participants/"] == [
         "round set-up (coordinators)"
     ]
+    assert tags["get", "/api/v1/comparisons/{code}/doe-covariance/"] == ["scores and compatibility"]
     assert tags["post", "/api/v1/comparisons/{code}/publish/"] == [
         "round life cycle (coordinators)"
     ]

@@ -3,6 +3,7 @@
 from django.core.management.base import BaseCommand, CommandError
 
 from common.errors import ApplicationError
+from common.sizes import database_id
 from labs.models import Laboratory
 from labs.services import api_key_create
 
@@ -10,8 +11,8 @@ from labs.services import api_key_create
 def _laboratory(ref: str) -> Laboratory:
     """By exact name, else by id (a laboratory named with digits still wins by name)."""
     lab = Laboratory.objects.filter(name=ref).first()
-    if lab is None and ref.isdigit():
-        lab = Laboratory.objects.filter(pk=int(ref)).first()
+    if lab is None and (pk := database_id(ref)) is not None:
+        lab = Laboratory.objects.filter(pk=pk).first()
     if lab is None:
         raise CommandError(f"No laboratory named {ref!r} or with that id.", returncode=2)
     return lab
