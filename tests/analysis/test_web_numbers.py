@@ -8,6 +8,7 @@ from django.contrib.auth import get_user_model
 from django.urls import reverse
 
 from analysis.models import AssignedValue, Score
+from common.quantities import unit_text
 from labs.models import RawRecomputation, RawRecord, Result, Submission
 from proficiency.models import Device
 
@@ -21,7 +22,8 @@ def login(client, name):
 
 
 def heading(unit: str) -> str:
-    return f' <span class="fw-normal text-nowrap d-block small">({unit})</span>'
+    """A column heading's unit as pages write it (``m/s²``: common.quantities.unit_text)."""
+    return f' <span class="fw-normal text-nowrap d-block small">({unit_text(unit)})</span>'
 
 
 def cells(page: str) -> list[str]:
@@ -177,11 +179,11 @@ def test_comparison_pages_write_nominal_values_without_noise(client, demo):
     login(client, "coordinator")
     page = client.get(C).content.decode()
     no_noise(page)
-    assert f"3.416016 {device.unit}" in cells(page)
+    assert f"3.416016 {unit_text(device.unit)}" in cells(page)
     assert any(c.startswith("± 0.3 ") for c in cells(page))
     participant = demo.participants.get(laboratory__name__startswith="Alpine")
     client.force_login(participant.laboratory.members.first().user)
     lab_page = client.get(reverse("labs:comparison", args=[CODE])).content.decode()
     no_noise(lab_page)
-    assert f"3.416016 {device.unit}" in cells(lab_page)
+    assert f"3.416016 {unit_text(device.unit)}" in cells(lab_page)
     assert any(c.startswith("± 0.3 ") for c in cells(lab_page))

@@ -7,6 +7,7 @@ import re
 import pytest
 from django.urls import reverse
 
+from common.quantities import unit_text
 from labs import services
 from labs.importers import ImportErrors, parse_rows, parse_table
 from labs.models import Result, Submission
@@ -55,7 +56,7 @@ def test_grid_keeps_a_relative_u_as_entered_and_stores_the_absolute_value(
 
     version = visible(client.get(reverse("labs:submission", args=[CODE, 1])))
     cells = [re.sub(r"<[^>]+>", "", c).strip() for c in re.findall(r"<td[^>]*>(.*?)</td>", version)]
-    unit = relative.unit
+    unit = unit_text(relative.unit)  # as pages write it: m/s²
     assert f"1.2 % (5.0 {unit})" in cells  # 418.7 × 0.012 = 5.0244
     assert "5.0" in cells and "419.5" in cells  # the absolute one: U to two digits
 
