@@ -260,9 +260,17 @@ def test_a_table_of_two_kinds_writes_each_slopes_unit(client, django_capture_on_
     link = html[html.index("Link per point") : html.index("Each participant")]
     assert link.count('text-body-secondary">°</span>') == 2  # one per kit at the phase
     assert link.count("D/(m/s²)</span>") == 2
+    # the coordinator's kits page, wider per row: a Unit column, the slopes in unit/d
     page = client.get(f"/coordinator/{code}/kits/").content.decode()
-    assert page.count('secondary">°/d</span>') == 4  # two kits: slope and u(slope) each
-    assert page.count('secondary">(D/(m/s²))/d</span>') == 4
+    tables = [t[: t.index("</table>")] for t in page.split("<table")[1:]]
+    stability = [t for t in tables if "Drift of" in t]
+    assert len(stability) == 2  # one per kit
+    for t in stability:
+        head = t[: t.index("</thead>")]
+        assert '<th scope="col">Unit</th>' in head and head.count("(unit/d)") == 2
+        assert "(unit in each row)" not in head and "secondary" not in t  # no unit per cell
+        units = re.findall(r'<td class="text-nowrap">([^<]*)</td><td class="num">', t)
+        assert units == ["D/(m/s²)", "°"]  # the magnitude's row, then the phase's
     clear_run_contexts()
     summary = " ".join(" ".join(pdf_text(render_report(report_data(run=run)))).split())
     assert summary.count(" °/d") == 4 and summary.count(" (D/(m/s²))/d") == 4
