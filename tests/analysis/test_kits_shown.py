@@ -175,8 +175,8 @@ def test_a_table_of_two_kinds_writes_each_rows_unit(
     client, two_kinds, django_capture_on_commit_callbacks
 ):
     """A kit round of a magnitude and an angular rate: the participants' table has no one
-    unit, so the headings say each row has its own and each d carries it (it once said so
-    and showed none)."""
+    unit, so a Unit column gives each row's (its headings once said each row had its own
+    and only d showed it)."""
     r = two_kinds
     coordinator = UserFactory.create()
     r["comparison"].coordinators.add(coordinator)
@@ -184,12 +184,18 @@ def test_a_table_of_two_kinds_writes_each_rows_unit(
     client.force_login(coordinator)
     html = client.get(f"/coordinator/{r['comparison'].code}/results/kits/").content.decode()
     table = html[html.index("Each participant's kit") :]
-    assert table[: table.index("</thead>")].count("(unit in each row)") == 5
+    table = table[: table.index("</table>")]
+    head = table[: table.index("</thead>")]
+    # a Unit column (the d, U(d), u_link and drift of a row are all in it); none per cell
+    assert '<th scope="col">Unit</th>' in head and "(unit in each row)" not in head
+    assert "text-body-secondary" not in table
+    rows = re.findall(r"<tr>(.*?)</tr>", table[table.index("<tbody>") :], re.S)
     for point, unit in ((0, "D/(m/s²)"), (1, "D/(°/s)")):  # stored D/(deg/s), shown with °
         k = row_of(r, "L5", point)
         assert k.linked_d is not None and k.linked_u is not None
         d = numbers.round_to_uncertainty(k.linked_d, 2 * k.linked_u, sign=True)
-        assert f'{d} <span class="small text-body-secondary">{unit}</span>' in table
+        mine = [x for x in rows if "<code>L5</code>" in x and f'<td class="num">{d}</td>' in x]
+        assert len(mine) == 1 and f'<td class="text-nowrap">{unit}</td>' in mine[0]
 
 
 def test_the_summary_report_gives_the_largest_u_link_per_unit(
