@@ -144,11 +144,19 @@ class ScoreList(ApiView, generics.ListAPIView):
 
 class CovariancePages(PageNumberPagination):
     """One point per page by default (a point of 300 participants is two 300 × 300
-    matrices); ``page_size`` up to 100."""
+    matrices); ``page_size`` up to 100, and no more points than keep a page within
+    :attr:`max_entries` matrix entries for the round's number of participants (the view's
+    ``n_bound``): 300 participants, two points a page."""
 
     page_size = 1
     page_size_query_param = "page_size"
     max_page_size = 100
+    max_entries = 400_000  # covariance and correlation entries a page may hold (≈ 8 MB)
+
+    def paginate_queryset(self, queryset: Any, request: Request, view: Any = None) -> Any:
+        n = max(getattr(view, "n_bound", 0), 1)
+        self.max_page_size = max(1, min(type(self).max_page_size, self.max_entries // (2 * n * n)))
+        return super().paginate_queryset(queryset, request, view)
 
 
 class DoeCovarianceList(ApiView, generics.ListAPIView):
@@ -168,6 +176,7 @@ class DoeCovarianceList(ApiView, generics.ListAPIView):
             return KitPointFit.objects.none()
         access = self.access(self.kwargs["code"])
         require_coordinator(access)
+        self.n_bound = access.comparison.participants.count()  # the matrices' size bound
         filters = {k: self.request.query_params.get(k, "") for k in POINT_KEYS}
         if filters["frequency_hz"]:
             number(filters["frequency_hz"], "frequency_hz")

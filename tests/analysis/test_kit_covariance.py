@@ -9,11 +9,13 @@ from __future__ import annotations
 import csv
 import io
 import re
+from unittest.mock import patch
 
 import numpy as np
 import pytest
 from rest_framework.test import APIClient
 
+from analysis.api.views import CovariancePages
 from analysis.archive_contents import Audience, archive_entries
 from analysis.kit_results import COVARIANCE_COLUMNS, covariance_of, covariance_rows
 from analysis.models import AnalysisRun, KitPointFit, KitScore
@@ -209,6 +211,11 @@ def test_the_api_gives_them_to_the_coordinator_only(pilot_round):
     assert item["correlation"][0][0] == 1.0
     both = api.get(url + "?page_size=5").json()["results"]
     assert [x["frequency_hz"] for x in both] == [5.0, 10.0]
+    # a page holds no more matrix entries than its bound: 7 participants, 2 · 7² = 98 per
+    # point, so a bound of 100 entries keeps one point a page whatever page_size asks
+    with patch.object(CovariancePages, "max_entries", 100):
+        capped = api.get(url + "?page_size=100").json()
+    assert capped["count"] == 2 and len(capped["results"]) == 1 and capped["next"]
     ten = api.get(url + "?frequency_hz=10").json()["results"]
     assert [x["frequency_hz"] for x in ten] == [10.0]
     assert api.get(url + "?frequency_hz=ten").status_code == 400
